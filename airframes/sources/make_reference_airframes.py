@@ -1,0 +1,223 @@
+"""Regenerate navion.json and volantex_ranger.json from the data and assumptions stated here.
+
+Run: python airframes/sources/make_reference_airframes.py  (writes ../navion.json and
+../volantex_ranger.json). Every number below names its source or the estimate behind it.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+OUT = Path(__file__).resolve().parent.parent
+DEG = math.pi / 180.0
+FT = 0.3048
+SLUGFT2 = 1.3558179483314  # kg m^2
+RHO0 = 1.225
+
+
+def polar_terms(cl0: float, cla: float, cd_parasite: float, k: float) -> list[dict]:
+    """C_D = C_Dp + k (C_L0 + C_La alpha)^2 expanded into monomials in alpha."""
+    return [
+        {"coef": round(cd_parasite + k * cl0**2, 6)},
+        {"coef": round(2 * k * cl0 * cla, 6), "alpha": 1},
+        {"coef": round(k * cla**2, 6), "alpha": 2},
+    ]
+
+
+def momentum_constants(static_thrust: float, speed: float, thrust_at_speed: float,
+                       disk_area: float) -> tuple[float, float]:
+    """k_m, C_p of T = 1/2 rho S_p C_p k_m (k_m - V) at full throttle from two thrust points."""
+    k_m = speed / (1.0 - thrust_at_speed / static_thrust)
+    c_p = 2.0 * static_thrust / (RHO0 * disk_area * k_m**2)
+    return k_m, c_p
+
+
+def surface(limit_deg: float) -> dict:
+    # Paper, "Actuators": servo-driven surfaces are second order, omega_n = 10 rad/s, zeta = 1/sqrt2.
+    return {"order": 2, "natural_frequency_rad_s": 10.0, "damping_ratio": round(1 / math.sqrt(2), 6),
+            "limits_rad": [round(-limit_deg * DEG, 6), round(limit_deg * DEG, 6)]}
+
+
+def navion() -> dict:
+    span, area, chord = 33.4 * FT, 184 * FT**2, 5.7 * FT
+    cl0, cla = 0.41, 4.44
+    # Nelson lists C_Da = 0.33 at C_L0: with C_D = C_Dp + k C_L^2, k = C_Da / (2 C_L0 C_La).
+    k = 0.33 / (2 * cl0 * cla)
+    cdp = 0.05 - k * cl0**2
+    oswald = 1.0 / (math.pi * (span**2 / area) * k)
+    # Piston engine: 205 hp (Continental E-185/IO-470 class), 2.13 m propeller. Static thrust from
+    # the momentum disk with figure of merit 0.75; cruise thrust from power available with
+    # propeller efficiency 0.80 at 53.64 m/s.
+    power = 205 * 745.7
+    disk = math.pi * (2.13 / 2) ** 2
+    static = (2 * RHO0 * disk) ** (1 / 3) * (0.75 * power) ** (2 / 3)
+    k_m, c_p = momentum_constants(static, 53.64, 0.80 * power / 53.64, disk)
+    return {
+        "schema_version": 1,
+        "name": "navion",
+        "display_name": "North American Navion",
+        "description": "Four-seat piston single; Nelson's textbook stability-derivative set.",
+        "geometry": {
+            "wing_area_m2": round(area, 4), "span_m": round(span, 4), "mean_chord_m": round(chord, 4),
+            "aspect_ratio": round(span**2 / area, 4), "taper_ratio": 0.54,
+            "wing_quarter_chord_m": [0.0, 0.0, 0.3],
+        },
+        "mass": {"mass_kg": round(2750 * 0.45359237, 2),
+                 "ixx_kg_m2": round(1048 * SLUGFT2, 1), "iyy_kg_m2": round(3000 * SLUGFT2, 1),
+                 "izz_kg_m2": round(3530 * SLUGFT2, 1), "ixz_kg_m2": 0.0},
+        "aero": {
+            "oswald_efficiency": round(oswald, 4),
+            "alpha_range_rad": [round(-10 * DEG, 5), round(20 * DEG, 5)],
+            "beta_range_rad": [round(-20 * DEG, 5), round(20 * DEG, 5)],
+            "alpha_stall_rad": round(15 * DEG, 5),
+            "coefficients": {
+                "CL": {"terms": [{"coef": cl0}, {"coef": cla, "alpha": 1},
+                                 {"coef": 0.355, "elevator": 1}], "rates": {"q": 3.8}},
+                "CD": {"terms": polar_terms(cl0, cla, cdp, k)},
+                "CY": {"terms": [{"coef": -0.564, "beta": 1}, {"coef": 0.157, "rudder": 1}]},
+                "Cl": {"terms": [{"coef": -0.074, "beta": 1}, {"coef": 0.134, "aileron": 1},
+                                 {"coef": 0.107, "rudder": 1}],
+                       "rates": {"p": -0.41, "r": 0.107}},
+                "Cm": {"terms": [{"coef": -0.683, "alpha": 1}, {"coef": -0.923, "elevator": 1}],
+                       "rates": {"q": -9.96 - 4.36}},
+                "Cn": {"terms": [{"coef": 0.071, "beta": 1}, {"coef": 0.0035, "aileron": 1},
+                                 {"coef": -0.072, "rudder": 1}],
+                       "rates": {"p": -0.0575, "r": -0.125}},
+            },
+        },
+        "propulsion": {"motors": [{
+            "name": "engine", "position_m": [1.8, 0.0, 0.0], "thrust_axis": [1.0, 0.0, 0.0],
+            "spin": 1, "disk_area_m2": round(disk, 4), "thrust_coefficient": round(c_p, 5),
+            "discharge_speed_mps": round(k_m, 3), "torque_coefficient": 0.0,
+            "torque_speed_constant_rad_s": 0.0, "time_constant_s": 3.0, "powerplant": "piston"}]},
+        "actuators": {"elevator": surface(20), "aileron": surface(15), "rudder": surface(15)},
+        "envelope": {"stall_speed_mps": 28.0, "cruise_speed_mps": 53.64, "max_speed_mps": 74.0,
+                     "max_bank_rad": round(60 * DEG, 5), "climb_rate_limit_mps": 3.8},
+        "provenance": {
+            "method": "published stability derivatives, converted to falcon-rl sign conventions",
+            "sources": [
+                "Nelson, Flight Stability and Automatic Control, 2nd ed., App. B (data from Teper 1969)",
+                "Navion POH (stall 53 kt clean, Vne 144 kt, climb 750 ft/min)",
+            ],
+            "notes": {
+                "reference_condition": "sea level, u0 = 176 ft/s = 53.64 m/s, alpha measured from the "
+                                       "reference body axis, so C_L0 = W/(qS) = 0.41 and C_m0 = 0",
+                "Cm.rates.q": "C_mq + C_m_alphadot = -9.96 - 4.36 (alpha_dot ~ q in the short period);"
+                              " the model has no alpha_dot state",
+                "CD": "parabolic polar C_Dp + k C_L^2 with k from Nelson's C_Da = 0.33 at C_L0",
+                "Cl.aileron": "Nelson's C_lda = -0.134 and C_nda = -0.0035 use the opposite aileron sign;"
+                              " both flipped so that positive aileron rolls right",
+                "taper_ratio": "estimate from the planform (root 7.2 ft, tip 3.9 ft)",
+                "wing_quarter_chord_m": "low wing: quarter chord about 0.3 m below the CG (estimate)",
+                "propulsion": f"static thrust {static:.0f} N (momentum disk, FM 0.75), "
+                              f"{0.8 * power / 53.64:.0f} N at 53.64 m/s (eta 0.8, 205 hp)",
+                "time_constant_s": "piston powerplant class: 3 s throttle lag (paper)",
+                "actuators": "surfaces: paper defaults (2nd order, 10 rad/s, 0.707; +-20/15/15 deg)",
+            },
+        },
+    }
+
+
+def volantex_ranger() -> dict:
+    # Ranger 1600 (757-7) class: span 1.62 m, 0.95 kg flying mass, cruise about 15 m/s.
+    # Planform and non-dimensional derivatives scale the public Ranger 2400 JSBSim set by
+    # 1.62/2.40 (same aspect ratio 10.9; chord 0.152 m), with the corrections noted below.
+    span, scale = 1.62, 1.62 / 2.40
+    area = 0.5279 * scale**2
+    chord = 0.2249 * scale
+    mass = 0.95
+    aspect = span**2 / area
+    cl0, cla = 0.24575, 5.5414
+    # Drag: a 1.6 m foam airframe at Re ~ 1.5e5 has C_Dp ~ 0.0235 (fixed undercarriage-free
+    # fuselage, exposed motor), Oswald e = 0.75: L/D ~ 10.4 at cruise, hence thrust ~ 0.9 N.
+    oswald = 0.75
+    k = 1.0 / (math.pi * oswald * aspect)
+    cdp = 0.0235
+    # Inertia: Ranger 2400 values scaled by (m ratio) * (length ratio)^2; the 2400 file violates the
+    # triangle inequality (Ixx + Iyy < Izz), so Izz is set to 0.94 (Ixx + Iyy).
+    f = (mass / 2.5) * scale**2
+    ixx, iyy, ixz = 0.3429 * f, 0.2664 * f, 0.0221 * f
+    izz = 0.94 * (ixx + iyy)
+    # Electric motor (2216-class, 8x6 propeller): 8 N static thrust at full throttle, zero thrust
+    # near the 28 m/s pitch speed (11,000 rpm x 6 in).
+    disk = math.pi * (0.2032 / 2) ** 2
+    k_m = 28.0
+    c_p = 2.0 * 8.0 / (RHO0 * disk * k_m**2)
+    return {
+        "schema_version": 1,
+        "name": "volantex_ranger",
+        "display_name": "Volantex Ranger 1600",
+        "description": "1.6 m electric pusher FPV airframe (hand-estimated set; see provenance).",
+        "geometry": {
+            "wing_area_m2": round(area, 5), "span_m": span, "mean_chord_m": round(chord, 5),
+            "aspect_ratio": round(aspect, 4), "taper_ratio": 0.7,
+            "wing_quarter_chord_m": [0.0, 0.0, -0.05],
+        },
+        "mass": {"mass_kg": mass, "ixx_kg_m2": round(ixx, 6), "iyy_kg_m2": round(iyy, 6),
+                 "izz_kg_m2": round(izz, 6), "ixz_kg_m2": round(ixz, 6)},
+        "aero": {
+            "oswald_efficiency": oswald,
+            "alpha_range_rad": [round(-10 * DEG, 5), round(18 * DEG, 5)],
+            "beta_range_rad": [round(-20 * DEG, 5), round(20 * DEG, 5)],
+            "alpha_stall_rad": round(12 * DEG, 5),
+            "coefficients": {
+                "CL": {"terms": [{"coef": cl0}, {"coef": cla, "alpha": 1},
+                                 {"coef": 0.6112, "elevator": 1}], "rates": {"q": 13.929}},
+                "CD": {"terms": [*polar_terms(cl0, cla, cdp, k),
+                                 {"coef": 0.00679, "elevator": 1},
+                                 {"coef": 0.15, "beta": 2}]},
+                "CY": {"terms": [{"coef": -0.35, "beta": 1}, {"coef": 0.2169, "rudder": 1}]},
+                "Cl": {"terms": [{"coef": -0.08, "beta": 1}, {"coef": 0.25, "aileron": 1},
+                                 {"coef": 0.01, "rudder": 1}],
+                       "rates": {"p": -0.45, "r": 0.10}},
+                "Cm": {"terms": [{"coef": 0.03}, {"coef": -1.2, "alpha": 1},
+                                 {"coef": -2.18, "elevator": 1}],
+                       "rates": {"q": -26.71}},
+                "Cn": {"terms": [{"coef": 0.08, "beta": 1}, {"coef": -0.01, "aileron": 1},
+                                 {"coef": -0.0835, "rudder": 1}],
+                       "rates": {"p": -0.03, "r": -0.08}},
+            },
+        },
+        "propulsion": {"motors": [{
+            "name": "pusher", "position_m": [-0.45, 0.0, -0.03], "thrust_axis": [1.0, 0.0, 0.0],
+            "spin": -1, "disk_area_m2": round(disk, 6), "thrust_coefficient": round(c_p, 5),
+            "discharge_speed_mps": k_m, "torque_coefficient": 0.0,
+            "torque_speed_constant_rad_s": 0.0, "time_constant_s": 0.2, "powerplant": "electric"}]},
+        "actuators": {"elevator": surface(20), "aileron": surface(15), "rudder": surface(15)},
+        "envelope": {"stall_speed_mps": 9.0, "cruise_speed_mps": 15.0, "max_speed_mps": 25.0,
+                     "max_bank_rad": round(45 * DEG, 5), "climb_rate_limit_mps": 2.5},
+        "provenance": {
+            "method": "hand estimate: Ranger 2400 JSBSim derivative set scaled to the 1600 airframe, "
+                      "corrected where physically implausible; to be replaced by a geometry-derived set",
+            "sources": [
+                "Volantex Ranger 2400 JSBSim model (ex2400_trim.xml): geometry, C_La, C_Lq, C_Lde, C_mq, "
+                "C_mde, C_Ydr",
+                "Ranger flight-data note: cruise 14-17 m/s, stall about 9 m/s",
+                "manufacturer data for the 1600 class: span 1.62 m, about 0.95 kg flying mass",
+            ],
+            "notes": {
+                "sign_conventions": "2400 set's C_lda, C_nda, C_Ydr, C_ndr flipped to falcon-rl signs",
+                "Cm": "C_ma -2.812 -> -1.2 and C_m0 0.2549 -> 0.03: the 2400 values include its 2.75 deg "
+                      "incidence and an aft-tail volume; chosen so cruise trims with about -1 deg elevator",
+                "Cl.beta": "-0.544 in the 2400 file is implausible; -0.08 (high wing, dihedral) used",
+                "Cn.beta": "0.3087 -> 0.08 (typical for the tail volume)",
+                "CD": f"parabolic polar, C_Dp = {cdp}, e = {oswald}; drag 0.9 N at 15 m/s",
+                "inertia": "2400 values scaled by mass x length^2; Izz reduced to satisfy the triangle "
+                           "inequality violated by the 2400 file",
+                "propulsion": "8 N static, zero thrust at k_m = 28 m/s; electric 0.2 s throttle lag",
+            },
+        },
+    }
+
+
+def main() -> None:
+    for doc in (navion(), volantex_ranger()):
+        path = OUT / f"{doc['name']}.json"
+        path.write_text(json.dumps(doc, indent=2) + "\n")
+        print(f"wrote {path}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,52 @@
+"""Control-surface and throttle actuators.
+
+Commands in [-1, 1] are clipped and mapped affinely onto [min, max] deflection (surfaces) or
+[0, 1] (throttle). Surfaces are first order (x' = (x_c - x)/tau) or second order
+(x'' = w_n^2 (x_c - x) - 2 zeta w_n x'); each motor's throttle is first order. Positions used by
+the forces are clamped to the limits, and ``saturate`` clamps the integrated state after each step
+(zeroing the rate where the limit is hit).
+"""
+
+from __future__ import annotations
+
+import torch
+
+from .params import ModelParams
+
+
+def command_targets(command: torch.Tensor, p: ModelParams) -> tuple[torch.Tensor, torch.Tensor]:
+    """Physical targets from normalised commands [N, 4] -> (surfaces [N, 3] rad, throttle [N])."""
+    u = command.clamp(-1.0, 1.0)
+    surfaces = p.surface_min + 0.5 * (u[:, :3] + 1.0) * (p.surface_max - p.surface_min)
+    throttle = 0.5 * (u[:, 3] + 1.0)
+    return surfaces, throttle
+
+
+def normalised_command(surfaces: torch.Tensor, throttle: torch.Tensor, p: ModelParams
+                       ) -> torch.Tensor:
+    """Inverse of :func:`command_targets`: [N, 3] rad and [N] throttle -> [N, 4] in [-1, 1]."""
+    u_surf = 2.0 * (surfaces - p.surface_min) / (p.surface_max - p.surface_min) - 1.0
+    return torch.cat([u_surf, (2.0 * throttle - 1.0).unsqueeze(-1)], dim=-1)
+
+
+def actuator_derivative(
+    position: torch.Tensor, rate: torch.Tensor, throttle: torch.Tensor, command: torch.Tensor,
+    p: ModelParams,
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """(d position [N, 3], d rate [N, 3], d throttle [N, M]) for the actuator states."""
+    target, throttle_target = command_targets(command, p)
+    wn = p.actuator_natural_frequency
+    second = p.actuator_second_order
+    d_pos = torch.where(second, rate, (target - position) / p.actuator_time_constant)
+    d_rate = torch.where(second, wn * wn * (target - position) - 2.0 * p.actuator_damping * wn * rate,
+                         torch.zeros_like(rate))
+    d_throttle = (throttle_target.unsqueeze(-1) - throttle) / p.throttle_time_constant
+    return d_pos, d_rate, d_throttle
+
+
+def saturate(position: torch.Tensor, rate: torch.Tensor, throttle: torch.Tensor, p: ModelParams
+             ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Clamp integrated actuator states to their limits; zero the rate where clamped."""
+    clamped = torch.minimum(torch.maximum(position, p.surface_min), p.surface_max)
+    rate = torch.where(clamped != position, torch.zeros_like(rate), rate)
+    return clamped, rate, throttle.clamp(0.0, 1.0)

@@ -1,0 +1,46 @@
+"""ISA / US Standard Atmosphere 1976: troposphere (0-11 km) and the isothermal layer above.
+
+Geometric altitude is converted to geopotential altitude H = r0 z / (r0 + z) first.
+"""
+
+from __future__ import annotations
+
+import torch
+
+T0 = 288.15  # K
+P0 = 101_325.0  # Pa
+G0 = 9.80665  # m/s^2
+R_AIR = 8.31432 / 0.0289644  # J/(kg K), R*/M0 as in the 1976 standard (287.0531)
+LAPSE = -0.0065  # K/m
+GAMMA = 1.4
+R_EARTH = 6_356_766.0  # m, geopotential Earth radius
+H_TROPOPAUSE = 11_000.0  # m geopotential
+T_TROPOPAUSE = T0 + LAPSE * H_TROPOPAUSE  # 216.65 K
+P_TROPOPAUSE = P0 * (T_TROPOPAUSE / T0) ** (-G0 / (R_AIR * LAPSE))  # 22,632 Pa
+
+
+def isa(altitude_m: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+    """ISA state at geometric altitude.
+
+    Args:
+        altitude_m: [...] geometric altitude above mean sea level, m (valid up to 20 km).
+
+    Returns:
+        (temperature K, pressure Pa, density kg/m^3, speed of sound m/s), each shaped like the input.
+    """
+    h = altitude_m.clamp(-1_000.0, 20_000.0)
+    geopotential = R_EARTH * h / (R_EARTH + h)
+    tropo = geopotential <= H_TROPOPAUSE
+    temperature = torch.where(tropo, T0 + LAPSE * geopotential,
+                              torch.full_like(geopotential, T_TROPOPAUSE))
+    p_tropo = P0 * (temperature / T0) ** (-G0 / (R_AIR * LAPSE))
+    p_strato = P_TROPOPAUSE * torch.exp(-G0 * (geopotential - H_TROPOPAUSE) / (R_AIR * T_TROPOPAUSE))
+    pressure = torch.where(tropo, p_tropo, p_strato)
+    density = pressure / (R_AIR * temperature)
+    sound = torch.sqrt(GAMMA * R_AIR * temperature)
+    return temperature, pressure, density, sound
+
+
+def isa_density(altitude_m: torch.Tensor) -> torch.Tensor:
+    """Density only, kg/m^3, shaped like ``altitude_m``."""
+    return isa(altitude_m)[2]

@@ -1,0 +1,81 @@
+"""Phillips-Hunsaker (2013) lifting-line ground-effect correlations.
+
+kappa_L = C_L,IGE / C_L,OGE at the same alpha, kappa_D = C_Di,IGE / C_Di,OGE at the same C_L, for a
+tapered untwisted wing of aspect ratio R_A and taper ratio R_T at height h above the ground:
+
+    kappa_D = beta_D [1 - delta_D exp(-4.74 x^0.814) - x^2 exp(-3.88 x^0.758)]
+    kappa_L = (1/beta_L) [1 + delta_L 288 x^0.787 exp(-9.14 x^0.327) / R_A^0.882]
+    delta_D = 1 - 0.157 (R_T^0.775 - 0.373)(R_A^0.417 - 1.27)
+    delta_L = 1 - 2.25 (R_T^0.00273 - 0.997)(R_A^0.717 + 13.6)
+    beta_D  = 1 + 0.0361 C_L^1.21 / (R_A^1.19 x^1.51)     (high-lift corrections, only when a
+    beta_L  = 1 + 0.269  C_L^1.45 / (R_A^3.18 x^1.12)      lift coefficient is given)
+
+with x = h/b. The lift bump vanishes as h -> 0 and the beta terms diverge like x^-1.5, so x is
+clamped below at ``H_OVER_B_MIN`` = 0.05, the conservative end of the 0.03-0.05 range over which the
+correlations are quoted; |C_L| is used so that negative lift gives finite factors.
+
+How the factors enter the aero model (``aero.py``), per env by ``ground_effect_mode``:
+- ``GE_INDUCED`` (default): C_L = kappa_L C_L_inf; C_D = C_D_inf + (kappa_D C_L^2 - C_L_inf^2)/(pi e R_A)
+  (only the induced part of the drag changes, parasitic drag is untouched).
+- ``GE_PAPER``: the reference paper's form C_D = C_D_inf (1 - mu_D)(1 + mu_L)^2 on the whole drag,
+  with mu_D = 1 - kappa_D and mu_L = kappa_L - 1. It overstates the saving at cruise.
+- ``GE_OFF``: no correction.
+"""
+
+from __future__ import annotations
+
+import torch
+
+H_OVER_B_MIN = 0.05
+GE_OFF, GE_INDUCED, GE_PAPER = 0, 1, 2
+GE_MODES = {"off": GE_OFF, "induced": GE_INDUCED, "paper": GE_PAPER}
+
+
+def ground_effect_mode(value: bool | str | int) -> int:
+    """Map the user's ``ground_effect`` argument (True/False/'induced'/'paper'/'off') to a code."""
+    if value is True:
+        return GE_INDUCED
+    if value is False or value is None:
+        return GE_OFF
+    if isinstance(value, str) and value in GE_MODES:
+        return GE_MODES[value]
+    if isinstance(value, int) and value in GE_MODES.values():
+        return value
+    raise ValueError(f"ground_effect must be True, False or one of {list(GE_MODES)}, got {value!r}")
+
+
+def taper_corrections(aspect_ratio: torch.Tensor, taper_ratio: torch.Tensor
+                      ) -> tuple[torch.Tensor, torch.Tensor]:
+    """(delta_D, delta_L) tapered-wing corrections, shaped like the inputs."""
+    delta_d = 1.0 - 0.157 * (taper_ratio**0.775 - 0.373) * (aspect_ratio**0.417 - 1.27)
+    delta_l = 1.0 - 2.25 * (taper_ratio**0.00273 - 0.997) * (aspect_ratio**0.717 + 13.6)
+    return delta_d, delta_l
+
+
+def phillips_hunsaker(
+    h_over_b: torch.Tensor,
+    aspect_ratio: torch.Tensor,
+    taper_ratio: torch.Tensor,
+    lift_coefficient: torch.Tensor | None = None,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Lift and induced-drag influence ratios.
+
+    Args:
+        h_over_b: [...] height of the wing quarter chord over span (clamped below at 0.05).
+        aspect_ratio, taper_ratio: broadcastable to ``h_over_b``.
+        lift_coefficient: out-of-ground-effect C_L for the high-lift corrections, or None.
+
+    Returns:
+        (kappa_L, kappa_D), broadcast shape of the inputs.
+    """
+    x = torch.clamp(h_over_b, min=H_OVER_B_MIN)
+    delta_d, delta_l = taper_corrections(aspect_ratio, taper_ratio)
+    kappa_d = 1.0 - delta_d * torch.exp(-4.74 * x**0.814) - x**2 * torch.exp(-3.88 * x**0.758)
+    kappa_l = 1.0 + delta_l * 288.0 * x**0.787 * torch.exp(-9.14 * x**0.327) / aspect_ratio**0.882
+    if lift_coefficient is not None:
+        cl = torch.abs(lift_coefficient)
+        beta_d = 1.0 + 0.0361 * cl**1.21 / (aspect_ratio**1.19 * x**1.51)
+        beta_l = 1.0 + 0.269 * cl**1.45 / (aspect_ratio**3.18 * x**1.12)
+        kappa_d = kappa_d * beta_d
+        kappa_l = kappa_l / beta_l
+    return kappa_l, kappa_d

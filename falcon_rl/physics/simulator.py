@@ -1,0 +1,289 @@
+"""Simulator: the backend-agnostic facade used by envs, controllers and tools.
+
+    sim = Simulator(load_airframe("navion"), num_envs=1024)
+    sim.reset()                      # trimmed level flight at cruise, 100 m
+    sim.step(commands)               # commands [N, 4] in [-1, 1]: elevator, aileron, rudder, throttle
+    td = sim.state                   # TensorDict of named fields, batch [N]: td["height"], ...
+
+State lives in one preallocated tensor updated in place; ``state`` returns clones.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import torch
+from tensordict import TensorDict
+
+from ..airframe import Airframe, load_airframe
+from . import state as S
+from .dynamics import AirInputs, derivative, evaluate, ground_contact, project
+from .integrators import INTEGRATORS
+from .params import build_params
+from .rotations import body_to_ned, euler_to_quaternion, quaternion_to_euler
+from .trim import trim_level
+
+BACKENDS = ("torch", "warp", "scipy")
+DEFAULT_HEIGHT = 100.0
+
+
+class Simulator:
+    """Batched fixed-wing 6DoF simulator.
+
+    Args:
+        airframe: an :class:`Airframe` or a shipped name / JSON path.
+        num_envs: N, the batch size.
+        backend: "torch" (batched, differentiable), "warp" (fused kernels) or "scipy"
+            (one env, float64, ``solve_ivp`` RK45 reference).
+        device, dtype: where the state lives (scipy forces cpu/float64).
+        dt: step length, s. integrator: "rk4" or "euler" (ignored by scipy).
+        ground_effect: True / "induced", "paper" or False / "off" (per-env, see params).
+        wind: steady wind in NED, [3] or [N, 3] m/s, or None.
+        turbulence: reserved for the Dryden model; must be None for now.
+        seed: seed of this simulator's generator.
+        check_inputs: raise on malformed or non-finite commands (costs a host sync on CUDA).
+    """
+
+    def __init__(
+        self,
+        airframe: Airframe | str,
+        num_envs: int = 1,
+        backend: str = "torch",
+        device: str | torch.device = "cpu",
+        dt: float = 0.01,
+        integrator: str = "rk4",
+        ground_effect: bool | str = True,
+        wind: torch.Tensor | list[float] | None = None,
+        turbulence: object | None = None,
+        seed: int = 0,
+        dtype: torch.dtype = torch.float32,
+        check_inputs: bool = True,
+    ):
+        if isinstance(airframe, str):
+            airframe = load_airframe(airframe)
+        if backend not in BACKENDS:
+            raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
+        if integrator not in INTEGRATORS:
+            raise ValueError(f"integrator must be one of {list(INTEGRATORS)}, got {integrator!r}")
+        if not num_envs >= 1:
+            raise ValueError(f"num_envs must be >= 1, got {num_envs}")
+        if not dt > 0:
+            raise ValueError(f"dt must be > 0, got {dt}")
+        if turbulence is not None:
+            raise NotImplementedError("Dryden turbulence is not implemented yet; pass None")
+        if backend == "scipy":
+            if num_envs != 1:
+                raise ValueError("the scipy reference backend runs exactly one env")
+            device, dtype = "cpu", torch.float64
+        self.airframe = airframe
+        self.num_envs = num_envs
+        self.backend = backend
+        self.device = torch.device(device)
+        self.dtype = dtype
+        self.dt = float(dt)
+        self.integrator = integrator
+        self.check_inputs = check_inputs
+        self.layout = S.StateLayout(airframe.num_motors)
+        self.params = build_params(airframe, num_envs, self.device, dtype, ground_effect)
+        self.generator = torch.Generator(device=self.device).manual_seed(seed)
+        self.x = torch.zeros(num_envs, self.layout.size, device=self.device, dtype=dtype)
+        self.command = torch.zeros(num_envs, S.NUM_CONTROLS, device=self.device, dtype=dtype)
+        self.wind_ned = torch.zeros(num_envs, 3, device=self.device, dtype=dtype)
+        if wind is not None:
+            self.wind_ned[:] = torch.as_tensor(wind, dtype=dtype, device=self.device)
+        self.gust_velocity_body = torch.zeros(num_envs, 3, device=self.device, dtype=dtype)
+        self.gust_rate_body = torch.zeros(num_envs, 3, device=self.device, dtype=dtype)
+        self.time = torch.zeros(num_envs, device=self.device, dtype=dtype)
+        self._default: torch.Tensor | None = None
+        self._default_command: torch.Tensor | None = None
+        self._engine = _make_engine(self)
+        self.reset()
+
+    # ------------------------------------------------------------------ state
+    @property
+    def air(self) -> AirInputs:
+        return AirInputs(self.wind_ned, self.gust_velocity_body, self.gust_rate_body)
+
+    def default_initial(self) -> tuple[torch.Tensor, torch.Tensor]:
+        """(state [S], command [4]) of trimmed level flight at cruise speed and 100 m."""
+        if self._default is None:
+            ge = int(self.params.ground_effect_mode[0])
+            mode = {0: "off", 1: "induced", 2: "paper"}[ge]
+            trim = trim_level(self.airframe, self.airframe.envelope.cruise_speed, DEFAULT_HEIGHT,
+                              ground_effect=mode)
+            self._default = trim.state[0].to(self.device, self.dtype)
+            self._default_command = trim.commands[0].to(self.device, self.dtype)
+        assert self._default_command is not None
+        return self._default, self._default_command
+
+    def reset(self, initial: Mapping[str, torch.Tensor] | torch.Tensor | None = None,
+              mask: torch.Tensor | None = None) -> TensorDict:
+        """Reset the envs selected by ``mask`` [N] bool (all when None).
+
+        ``initial`` is a full state tensor [N, S] / [S], or a mapping of named fields
+        (position_ned, quaternion or euler, velocity_body, angular_rate_body, surface_position,
+        throttle, command), each [N, ...] or broadcastable; missing fields come from trimmed
+        cruise at 100 m. Rows outside the mask are never touched.
+        """
+        n = self.num_envs
+        base, base_cmd = self.default_initial()
+        new_x = base.expand(n, -1).clone()
+        new_cmd = base_cmd.expand(n, -1).clone()
+        if isinstance(initial, torch.Tensor):
+            new_x[:] = initial.to(self.device, self.dtype)
+        elif initial is not None:
+            new_x, new_cmd = self._compose_initial(initial, new_x, new_cmd)
+        new_x = project(new_x, self.params)
+        if mask is None:
+            self.x.copy_(new_x)
+            self.command.copy_(new_cmd)
+            self.time.zero_()
+        else:
+            mask = mask.to(self.device).reshape(n)
+            self.x[mask] = new_x[mask]
+            self.command[mask] = new_cmd[mask]
+            self.time[mask] = 0.0
+        self._engine.after_reset(mask)
+        return self.state
+
+    def _compose_initial(self, initial: Mapping[str, torch.Tensor], x: torch.Tensor,
+                         cmd: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        allowed = {"position_ned", "quaternion", "euler", "velocity_body", "angular_rate_body",
+                   "surface_position", "throttle", "command", "height"}
+        unknown = set(initial.keys()) - allowed
+        if unknown:
+            raise KeyError(f"unknown initial fields {sorted(unknown)}; allowed {sorted(allowed)}")
+
+        def val(key: str) -> torch.Tensor:
+            return torch.as_tensor(initial[key], dtype=self.dtype, device=self.device)
+
+        if "position_ned" in initial:
+            x[:, S.POSITION] = val("position_ned")
+        if "height" in initial:
+            x[:, 2] = -val("height")
+        if "quaternion" in initial and "euler" in initial:
+            raise KeyError("give either 'quaternion' or 'euler', not both")
+        if "quaternion" in initial:
+            x[:, S.QUATERNION] = val("quaternion")
+        if "euler" in initial:
+            x[:, S.QUATERNION] = euler_to_quaternion(val("euler").expand(self.num_envs, 3))
+        if "velocity_body" in initial:
+            x[:, S.VELOCITY] = val("velocity_body")
+        if "angular_rate_body" in initial:
+            x[:, S.ANGULAR_RATE] = val("angular_rate_body")
+        if "surface_position" in initial:
+            x[:, S.SURFACE_POSITION] = val("surface_position")
+            x[:, S.SURFACE_RATE] = 0.0
+        if "throttle" in initial:
+            thr = val("throttle")
+            x[:, self.layout.throttle] = thr.unsqueeze(-1) if thr.dim() == 1 else thr
+        if "command" in initial:
+            cmd[:] = val("command")
+        if not torch.isfinite(x).all():
+            raise ValueError("initial state contains NaN or Inf")
+        return x, cmd
+
+    # ------------------------------------------------------------------ stepping
+    def step(self, commands: torch.Tensor) -> None:
+        """Advance all envs by dt under ``commands`` [N, 4] in [-1, 1] (clipped).
+
+        Read the result from :attr:`state` (kept off the hot path: stepping allocates nothing
+        beyond the integrator's temporaries)."""
+        commands = torch.as_tensor(commands, device=self.device, dtype=self.dtype)
+        if self.check_inputs:
+            if commands.shape != (self.num_envs, S.NUM_CONTROLS):
+                raise ValueError(f"commands must have shape ({self.num_envs}, {S.NUM_CONTROLS}) "
+                                 f"[elevator, aileron, rudder, throttle], got {tuple(commands.shape)}")
+            if not torch.isfinite(commands).all():
+                bad = (~torch.isfinite(commands)).any(-1).nonzero().flatten().tolist()
+                raise ValueError(f"commands contain NaN or Inf for envs {bad[:10]}")
+        self.command.copy_(commands.clamp(-1.0, 1.0))
+        self._engine.step()
+        self.time += self.dt
+
+    def advance_torch(self, x: torch.Tensor, command: torch.Tensor) -> torch.Tensor:
+        """One torch integration step of x [N, S] (not in place); used by engines and MPPI."""
+        air = self.air
+
+        def f(xx: torch.Tensor) -> torch.Tensor:
+            return derivative(xx, command, self.params, air)
+
+        return project(INTEGRATORS[self.integrator](f, x, self.dt), self.params)
+
+    @property
+    def state(self) -> TensorDict:
+        """Named fields of the current state (clones), batch [N]."""
+        x = self.x
+        ev = evaluate(x, self.params, self.air)
+        q = x[:, S.QUATERNION]
+        return TensorDict(
+            {
+                "position_ned": x[:, S.POSITION].clone(),
+                "quaternion": q.clone(),
+                "euler": quaternion_to_euler(q),
+                "velocity_body": x[:, S.VELOCITY].clone(),
+                "velocity_ned": body_to_ned(q, x[:, S.VELOCITY]),
+                "angular_rate_body": x[:, S.ANGULAR_RATE].clone(),
+                "airspeed": ev.airspeed,
+                "alpha": ev.alpha,
+                "beta": ev.beta,
+                "height": ev.height,
+                "wing_height": ev.wing_height,
+                "surface_position": ev.surfaces,
+                "surface_rate": x[:, S.SURFACE_RATE].clone(),
+                "throttle": x[:, self.layout.throttle].clone(),
+                "thrust": ev.thrust.sum(-1),
+                "aero_coefficients": ev.coefficients,
+                "command": self.command.clone(),
+                "ground_contact": ground_contact(x, self.params),
+                "time": self.time.clone(),
+                "gust_velocity_body": self.gust_velocity_body.clone(),
+                "gust_rate_body": self.gust_rate_body.clone(),
+            },
+            batch_size=[self.num_envs],
+            device=self.device,
+        )
+
+
+class _TorchEngine:
+    def __init__(self, sim: Simulator):
+        self.sim = sim
+
+    def step(self) -> None:
+        sim = self.sim
+        sim.x.copy_(sim.advance_torch(sim.x, sim.command))
+
+    def after_reset(self, mask: torch.Tensor | None) -> None:
+        pass
+
+
+class _ScipyEngine(_TorchEngine):
+    """Reference: ``solve_ivp`` (RK45, rtol 1e-10, atol 1e-10) over each step, float64."""
+
+    def step(self) -> None:
+        import numpy as np
+        from scipy.integrate import solve_ivp
+
+        sim = self.sim
+        command = sim.command.clone()
+        air = sim.air
+
+        def f(_t: float, y: np.ndarray) -> np.ndarray:
+            xx = torch.from_numpy(y).reshape(1, -1)
+            return derivative(xx, command, sim.params, air).reshape(-1).numpy()
+
+        sol = solve_ivp(f, (0.0, sim.dt), sim.x[0].numpy(), method="RK45", rtol=1e-10, atol=1e-10)
+        if not sol.success:
+            raise RuntimeError(f"solve_ivp failed: {sol.message}")
+        y = torch.from_numpy(sol.y[:, -1]).reshape(1, -1)
+        sim.x.copy_(project(y, sim.params))
+
+
+def _make_engine(sim: Simulator) -> _TorchEngine:
+    if sim.backend == "scipy":
+        return _ScipyEngine(sim)
+    if sim.backend == "warp":
+        from .warp_backend import WarpEngine
+
+        return WarpEngine(sim)
+    return _TorchEngine(sim)

@@ -1,0 +1,155 @@
+"""Steady, wings-level trim: alpha, beta, elevator, aileron, rudder and throttle that null all
+body accelerations (forces and moments) at a given airspeed and height, ground effect on or off.
+
+Solved by damped Newton iterations in float64 with autograd Jacobians, batched over conditions.
+Level flight: pitch = alpha, roll = 0, body rates 0, still air.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+
+from ..airframe import Airframe
+from . import state as S
+from .actuators import normalised_command
+from .dynamics import derivative, evaluate
+from .params import ModelParams, build_params
+from .rotations import euler_to_quaternion
+
+
+class TrimError(RuntimeError):
+    """No trim exists (or Newton did not converge) for a requested condition."""
+
+
+@dataclass
+class TrimResult:
+    """Trim of K conditions; every field is a float64 tensor with leading dim K."""
+
+    airspeed: torch.Tensor  # [K] m/s
+    height: torch.Tensor  # [K] m
+    alpha: torch.Tensor  # [K] rad
+    beta: torch.Tensor  # [K] rad
+    surfaces: torch.Tensor  # [K, 3] rad (elevator, aileron, rudder)
+    throttle: torch.Tensor  # [K]
+    commands: torch.Tensor  # [K, 4] normalised commands that hold the trim
+    state: torch.Tensor  # [K, S] state vector
+    thrust: torch.Tensor  # [K] N, all motors
+    lift: torch.Tensor  # [K] N
+    drag: torch.Tensor  # [K] N
+    lift_coefficient: torch.Tensor  # [K]
+    drag_coefficient: torch.Tensor  # [K]
+    induced_drag_coefficient: torch.Tensor  # [K]
+    residual: torch.Tensor  # [K] max |body acceleration| (m/s^2 and rad/s^2)
+
+    def row(self, k: int = 0) -> dict[str, float]:
+        """Condition k as plain floats with units in the names (CLI/JSON)."""
+        return {
+            "airspeed_mps": float(self.airspeed[k]),
+            "height_m": float(self.height[k]),
+            "alpha_deg": float(torch.rad2deg(self.alpha[k])),
+            "beta_deg": float(torch.rad2deg(self.beta[k])),
+            "elevator_deg": float(torch.rad2deg(self.surfaces[k, 0])),
+            "aileron_deg": float(torch.rad2deg(self.surfaces[k, 1])),
+            "rudder_deg": float(torch.rad2deg(self.surfaces[k, 2])),
+            "throttle": float(self.throttle[k]),
+            "thrust_n": float(self.thrust[k]),
+            "drag_n": float(self.drag[k]),
+            "lift_n": float(self.lift[k]),
+            "lift_coefficient": float(self.lift_coefficient[k]),
+            "drag_coefficient": float(self.drag_coefficient[k]),
+            "induced_drag_coefficient": float(self.induced_drag_coefficient[k]),
+        }
+
+
+def level_state(unknowns: torch.Tensor, airspeed: torch.Tensor, height: torch.Tensor,
+                num_motors: int) -> torch.Tensor:
+    """State [K, S] for unknowns [K, 6] = (alpha, beta, d_e, d_a, d_r, throttle)."""
+    alpha, beta = unknowns[:, 0], unknowns[:, 1]
+    k = unknowns.shape[0]
+    zeros = torch.zeros(k, dtype=unknowns.dtype, device=unknowns.device)
+    position = torch.stack([zeros, zeros, -height], dim=-1)
+    quat = euler_to_quaternion(torch.stack([zeros, alpha, zeros], dim=-1))
+    vel = airspeed[:, None] * torch.stack(
+        [torch.cos(alpha) * torch.cos(beta), torch.sin(beta), torch.sin(alpha) * torch.cos(beta)],
+        dim=-1)
+    throttle = unknowns[:, 5:6].expand(k, num_motors)
+    return torch.cat([position, quat, vel, torch.zeros_like(vel), unknowns[:, 2:5],
+                      torch.zeros_like(vel), throttle], dim=-1)
+
+
+def _residual(unknowns: torch.Tensor, airspeed, height, p: ModelParams, num_motors: int):
+    x = level_state(unknowns, airspeed, height, num_motors)
+    command = normalised_command(unknowns[:, 2:5], unknowns[:, 5], p)
+    xdot = derivative(x, command, p)
+    return torch.cat([xdot[:, S.VELOCITY], xdot[:, S.ANGULAR_RATE]], dim=-1)
+
+
+def trim_level(
+    airframe: Airframe,
+    airspeed: float | torch.Tensor,
+    height: float | torch.Tensor,
+    ground_effect: bool | str = True,
+    tol: float = 1e-9,
+    max_iter: int = 60,
+) -> TrimResult:
+    """Trim straight and level flight. ``airspeed`` and ``height`` are scalars or [K] tensors.
+
+    Raises :class:`TrimError` naming the condition when no trim is found within the airframe's
+    alpha range, surface limits and throttle range [0, 1].
+    """
+    v = torch.as_tensor(airspeed, dtype=torch.float64).reshape(-1)
+    h = torch.as_tensor(height, dtype=torch.float64).reshape(-1)
+    v, h = torch.broadcast_tensors(v, h)
+    v, h = v.contiguous(), h.contiguous()
+    k = v.shape[0]
+    m = airframe.num_motors
+    p = build_params(airframe, k, dtype=torch.float64, ground_effect=ground_effect)
+    z = torch.zeros(k, 6, dtype=torch.float64)
+    z[:, 0] = 0.05
+    z[:, 5] = 0.5
+    step_limit = torch.tensor([0.05, 0.05, 0.05, 0.05, 0.05, 0.2], dtype=torch.float64)
+    residual = None
+    for _ in range(max_iter):
+        residual = _residual(z, v, h, p, m)
+        if residual.abs().max() < tol:
+            break
+        jac = torch.autograd.functional.jacobian(
+            lambda zz: _residual(zz, v, h, p, m).sum(0), z)  # [6, K, 6]
+        jac = jac.permute(1, 0, 2)  # [K, 6, 6]
+        step = torch.linalg.solve(jac, -residual.unsqueeze(-1)).squeeze(-1)
+        scale = (step.abs() / step_limit).max(dim=-1, keepdim=True).values.clamp_min(1.0)
+        z = z + step / scale
+    assert residual is not None
+    err = residual.abs().max(dim=-1).values
+    _check(airframe, z, v, h, err, tol, p)
+    return _result(z, v, h, p, m, err)
+
+
+def _check(airframe: Airframe, z, v, h, err, tol, p: ModelParams) -> None:
+    lo, hi = airframe.aero.alpha_range
+    for i in range(z.shape[0]):
+        where = f"{airframe.name} at {float(v[i]):.2f} m/s, {float(h[i]):.2f} m"
+        if not torch.isfinite(z[i]).all() or err[i] > max(1e3 * tol, 1e-6):
+            raise TrimError(f"trim did not converge for {where} (residual {float(err[i]):.3g})")
+        if not lo <= float(z[i, 0]) <= hi:
+            raise TrimError(f"no trim for {where}: alpha {float(z[i, 0]):.3f} rad outside the "
+                            f"aero table's range [{lo}, {hi}]")
+        if not (p.surface_min[i] <= z[i, 2:5]).all() or not (z[i, 2:5] <= p.surface_max[i]).all():
+            raise TrimError(f"no trim for {where}: surfaces {z[i, 2:5].tolist()} rad exceed limits")
+        if not 0.0 <= float(z[i, 5]) <= 1.0:
+            raise TrimError(f"no trim for {where}: throttle {float(z[i, 5]):.3f} outside [0, 1]")
+
+
+def _result(z, v, h, p: ModelParams, m: int, err) -> TrimResult:
+    x = level_state(z, v, h, m)
+    ev = evaluate(x, p)
+    qs = 0.5 * ev.density * v**2 * p.wing_area
+    return TrimResult(
+        airspeed=v, height=h, alpha=z[:, 0], beta=z[:, 1], surfaces=z[:, 2:5], throttle=z[:, 5],
+        commands=normalised_command(z[:, 2:5], z[:, 5], p), state=x,
+        thrust=ev.thrust.sum(-1), lift=qs * ev.coefficients[:, 0], drag=qs * ev.coefficients[:, 1],
+        lift_coefficient=ev.coefficients[:, 0], drag_coefficient=ev.coefficients[:, 1],
+        induced_drag_coefficient=ev.induced_drag_coefficient, residual=err,
+    )
