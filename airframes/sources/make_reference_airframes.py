@@ -93,7 +93,7 @@ def navion() -> dict:
             "discharge_speed_mps": round(k_m, 3), "torque_coefficient": 0.0,
             "torque_speed_constant_rad_s": 0.0, "time_constant_s": 3.0, "powerplant": "piston"}]},
         "actuators": {"elevator": surface(20), "aileron": surface(15), "rudder": surface(15)},
-        "envelope": {"stall_speed_mps": 28.0, "cruise_speed_mps": 53.64, "max_speed_mps": 74.0,
+        "envelope": {"stall_speed_mps": 27.5, "cruise_speed_mps": 53.64, "max_speed_mps": 62.0,
                      "max_bank_rad": round(60 * DEG, 5), "climb_rate_limit_mps": 3.8},
         "provenance": {
             "method": "published stability derivatives, converted to falcon-rl sign conventions",
@@ -115,6 +115,8 @@ def navion() -> dict:
                               f"{0.8 * power / 53.64:.0f} N at 53.64 m/s (eta 0.8, 205 hp)",
                 "time_constant_s": "piston powerplant class: 3 s throttle lag (paper)",
                 "actuators": "surfaces: paper defaults (2nd order, 10 rad/s, 0.707; +-20/15/15 deg)",
+                "envelope": "stall 27.5 m/s = POH 53 kt (C_L,max 1.57 at 15 deg); max 62 m/s is the "
+                            "model's top level speed at full throttle (Nelson's C_D0 = 0.05 is high)",
             },
         },
     }
@@ -186,7 +188,7 @@ def volantex_ranger() -> dict:
             "discharge_speed_mps": k_m, "torque_coefficient": 0.0,
             "torque_speed_constant_rad_s": 0.0, "time_constant_s": 0.2, "powerplant": "electric"}]},
         "actuators": {"elevator": surface(20), "aileron": surface(15), "rudder": surface(15)},
-        "envelope": {"stall_speed_mps": 9.0, "cruise_speed_mps": 15.0, "max_speed_mps": 25.0,
+        "envelope": {"stall_speed_mps": 7.0, "cruise_speed_mps": 15.0, "max_speed_mps": 21.0,
                      "max_bank_rad": round(45 * DEG, 5), "climb_rate_limit_mps": 2.5},
         "provenance": {
             "method": "hand estimate: Ranger 2400 JSBSim derivative set scaled to the 1600 airframe, "
@@ -207,6 +209,8 @@ def volantex_ranger() -> dict:
                 "inertia": "2400 values scaled by mass x length^2; Izz reduced to satisfy the triangle "
                            "inequality violated by the 2400 file",
                 "propulsion": "8 N static, zero thrust at k_m = 28 m/s; electric 0.2 s throttle lag",
+                "envelope": "stall 7 m/s from C_L,max ~ 1.3 at 0.95 kg (the 9 m/s flight-data figure is the "
+                            "heavier 2400); max 21 m/s is the model's top level speed",
             },
         },
     }

@@ -118,7 +118,8 @@ def trim_level(
         jac = torch.autograd.functional.jacobian(
             lambda zz: _residual(zz, v, h, p, m).sum(0), z)  # [6, K, 6]
         jac = jac.permute(1, 0, 2)  # [K, 6, 6]
-        step = torch.linalg.solve(jac, -residual.unsqueeze(-1)).squeeze(-1)
+        # Pseudo-inverse: stays finite where the alpha clamp of the aero table flattens a column.
+        step = (torch.linalg.pinv(jac) @ -residual.unsqueeze(-1)).squeeze(-1)
         scale = (step.abs() / step_limit).max(dim=-1, keepdim=True).values.clamp_min(1.0)
         z = z + step / scale
     assert residual is not None
@@ -131,15 +132,18 @@ def _check(airframe: Airframe, z, v, h, err, tol, p: ModelParams) -> None:
     lo, hi = airframe.aero.alpha_range
     for i in range(z.shape[0]):
         where = f"{airframe.name} at {float(v[i]):.2f} m/s, {float(h[i]):.2f} m"
-        if not torch.isfinite(z[i]).all() or err[i] > max(1e3 * tol, 1e-6):
-            raise TrimError(f"trim did not converge for {where} (residual {float(err[i]):.3g})")
+        if not torch.isfinite(z[i]).all():
+            raise TrimError(f"trim diverged for {where}")
         if not lo <= float(z[i, 0]) <= hi:
-            raise TrimError(f"no trim for {where}: alpha {float(z[i, 0]):.3f} rad outside the "
-                            f"aero table's range [{lo}, {hi}]")
+            raise TrimError(f"no trim for {where}: alpha {float(z[i, 0]):.3f} rad leaves the aero "
+                            f"table's range [{lo}, {hi}] (below stall speed "
+                            f"{airframe.envelope.stall_speed} m/s?)")
+        if not 0.0 <= float(z[i, 5]) <= 1.0:
+            raise TrimError(f"no trim for {where}: needs throttle {float(z[i, 5]):.3f}, outside [0, 1]")
         if not (p.surface_min[i] <= z[i, 2:5]).all() or not (z[i, 2:5] <= p.surface_max[i]).all():
             raise TrimError(f"no trim for {where}: surfaces {z[i, 2:5].tolist()} rad exceed limits")
-        if not 0.0 <= float(z[i, 5]) <= 1.0:
-            raise TrimError(f"no trim for {where}: throttle {float(z[i, 5]):.3f} outside [0, 1]")
+        if err[i] > max(1e3 * tol, 1e-6):
+            raise TrimError(f"trim did not converge for {where} (residual {float(err[i]):.3g})")
 
 
 def _result(z, v, h, p: ModelParams, m: int, err) -> TrimResult:

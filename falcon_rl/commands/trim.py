@@ -1,0 +1,37 @@
+"""``falcon-rl trim``: straight-and-level trim of an airframe at an airspeed and height."""
+
+from __future__ import annotations
+
+import argparse
+
+from ..airframe import load_airframe
+from ..cli import UsageError, emit
+from ..physics.trim import trim_level
+
+NAME = "trim"
+HELP = "trim straight and level flight: alpha, elevator, throttle, thrust, drag, C_L, C_D, C_Di"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--airframe", required=True, help="shipped name or path to a JSON file")
+    parser.add_argument("--airspeed", type=float, default=None, help="m/s (default: cruise)")
+    parser.add_argument("--height", type=float, default=100.0, help="m above ground")
+    parser.add_argument("--no-ground-effect", action="store_true", help="switch ground effect off")
+    parser.add_argument("--ground-effect-model", choices=["induced", "paper"], default="induced",
+                        help="induced-drag-only correction (default) or the paper's whole-drag form")
+
+
+def run(args: argparse.Namespace) -> int:
+    airframe = load_airframe(args.airframe)
+    airspeed = airframe.envelope.cruise_speed if args.airspeed is None else args.airspeed
+    if not airspeed > 0:
+        raise UsageError(f"--airspeed must be > 0, got {airspeed}")
+    if not args.height > 0:
+        raise UsageError(f"--height must be > 0, got {args.height}")
+    ge = False if args.no_ground_effect else args.ground_effect_model
+    row = trim_level(airframe, airspeed, args.height, ground_effect=ge).row(0)
+    doc = {"airframe": airframe.name, "ground_effect": ge or "off", **row}
+    text = "\n".join(f"{k:<26}{v:.6g}" if isinstance(v, float) else f"{k:<26}{v}"
+                     for k, v in doc.items())
+    emit(args, doc, text)
+    return 0

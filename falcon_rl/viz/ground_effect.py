@@ -1,0 +1,36 @@
+"""Figure: trim-thrust change against h/b, measured and lifting-line theory, per airframe."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+from ..evaluation.ground_effect_table import GroundEffectRow  # noqa: E402
+
+
+def plot_ground_effect(tables: dict[str, list[GroundEffectRow]], path: str | Path) -> Path:
+    """Write a PNG of delta-thrust % vs h/b (log x), one colour per airframe."""
+    fig, ax = plt.subplots(figsize=(6.4, 4.2), dpi=130)
+    for i, (name, rows) in enumerate(tables.items()):
+        color = f"C{i}"
+        x = [r.h_over_b for r in rows]
+        ax.plot(x, [r.delta_percent for r in rows], "o-", color=color, label=f"{name}: trim")
+        ax.plot(x, [r.theory_percent for r in rows], "s--", color=color, alpha=0.6,
+                label=f"{name}: theory (fixed $C_L$)")
+    ax.axhline(0.0, color="0.5", lw=0.8)
+    ax.set_xscale("log")
+    ax.set_xlabel("height over span h/b")
+    ax.set_ylabel("trim thrust change with ground effect (%)")
+    ax.set_title("Ground effect: thrust demand in level flight at cruise speed")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path)
+    plt.close(fig)
+    return path
