@@ -1,0 +1,84 @@
+"""CLI: JSON shapes on stdout, exit code 2 with a one-line reason on stderr for bad input."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from falcon_rl.cli import main
+
+
+def run_json(capsys, *argv):
+    code = main([*argv, "--json"])
+    out, err = capsys.readouterr()
+    return code, json.loads(out), err
+
+
+def test_airframes_json(capsys):
+    code, doc, _ = run_json(capsys, "airframes")
+    assert code == 0
+    names = {row["name"] for row in doc["airframes"]}
+    assert {"navion", "volantex_ranger"} <= names
+    row = doc["airframes"][0]
+    for key in ("span_m", "wing_area_m2", "aspect_ratio", "taper_ratio", "mass_kg", "cruise_speed_mps"):
+        assert isinstance(row[key], float)
+
+
+def test_trim_json_navion_reference_condition(capsys, navion):
+    """Nelson's reference condition (sea level, 176 ft/s): C_L within 2% of W/(qS); alpha and
+    elevator near zero since the data are referred to that trim."""
+    code, doc, _ = run_json(capsys, "trim", "--airframe", "navion", "--airspeed", "53.64",
+                            "--height", "30", "--no-ground-effect")
+    assert code == 0
+    import torch
+
+    from falcon_rl.physics.atmosphere import isa_density
+
+    rho = float(isa_density(torch.tensor(30.0)))
+    cl_weight = navion.weight / (0.5 * rho * 53.64**2 * navion.geometry.wing_area)
+    assert doc["lift_coefficient"] == pytest.approx(cl_weight, rel=0.02)
+    assert abs(doc["alpha_deg"]) < 0.5 and abs(doc["elevator_deg"]) < 0.5
+    for key in ("alpha_deg", "elevator_deg", "throttle", "thrust_n", "drag_n", "lift_coefficient",
+                "drag_coefficient", "induced_drag_coefficient"):
+        assert key in doc
+
+
+def test_trim_ranger_cruise_thrust(capsys):
+    code, doc, _ = run_json(capsys, "trim", "--airframe", "volantex_ranger")
+    assert code == 0
+    assert doc["thrust_n"] == pytest.approx(0.9, rel=0.1)
+
+
+def test_ge_table_json_and_plot(capsys, tmp_path, ranger):
+    code, doc, _ = run_json(capsys, "ge-table", "--airframe", "volantex_ranger", "--out", str(tmp_path))
+    assert code == 0
+    rows = doc["rows"]
+    assert [r["h_over_b"] for r in rows] == [0.25, 0.5, 1.0, 2.0, 3.0, 6.0]
+    deltas = [r["delta_percent"] for r in rows]
+    assert deltas[0] < deltas[1] < deltas[2] < 0  # thrust falls nearer the ground
+    assert abs(deltas[-1]) < 0.5
+    assert (tmp_path / "volantex_ranger.png").stat().st_size > 10_000
+
+
+@pytest.mark.parametrize(
+    ("argv", "needle"),
+    [
+        (["trim", "--airframe", "nope"], "unknown airframe"),
+        (["trim", "--airframe", "navion", "--airspeed", "-3"], "--airspeed must be > 0"),
+        (["trim", "--airframe", "navion", "--airspeed", "15"], "no trim for navion"),
+        (["trim", "--airframe", "navion", "--airspeed", "abc"], "invalid float value"),
+        (["ge-table"], "required: --airframe"),
+        (["fly"], "invalid choice"),
+    ],
+)
+def test_bad_input_exits_2_with_one_line(capsys, argv, needle):
+    try:
+        code = main(argv)
+    except SystemExit as exc:  # argparse errors
+        code = exc.code
+    out, err = capsys.readouterr()
+    assert code == 2
+    assert needle in err
+    assert len(err.strip().splitlines()) == 1
+    assert out == ""
