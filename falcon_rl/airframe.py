@@ -10,7 +10,6 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import dataclass, field
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -27,7 +26,9 @@ SURFACES: tuple[str, ...] = ("elevator", "aileron", "rudder")
 CONTROL_NAMES: tuple[str, ...] = (*SURFACES, "throttle")
 POWERPLANTS: tuple[str, ...] = ("electric", "piston")
 
-_SOURCE_DIR = Path(__file__).resolve().parent.parent / "airframes"
+# The shipped JSON files: falcon_rl/airframes links to the repository's airframes/ folder and
+# the wheel carries the files themselves.
+_SHIPPED_DIR = Path(__file__).resolve().parent / "airframes"
 
 
 class AirframeError(ValueError):
@@ -160,10 +161,7 @@ def load_airframe(name_or_path: str | Path) -> Airframe:
 
 
 def _shipped_files() -> list[Path]:
-    if _SOURCE_DIR.is_dir():
-        return sorted(_SOURCE_DIR.glob("*.json"))
-    pkg = resources.files("falcon_rl.airframes")
-    return sorted(Path(str(p)) for p in pkg.iterdir() if p.name.endswith(".json"))
+    return sorted(_SHIPPED_DIR.glob("*.json"))
 
 
 def _resolve(name_or_path: str | Path) -> Path:
