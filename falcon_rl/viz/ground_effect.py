@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import matplotlib
+import matplotlib.ticker
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
@@ -23,6 +24,9 @@ def plot_ground_effect(tables: dict[str, list[GroundEffectRow]], path: str | Pat
                 label=f"{name}: theory (fixed $C_L$)")
     ax.axhline(0.0, color="0.5", lw=0.8)
     ax.set_xscale("log")
+    ticks = sorted({r.h_over_b for rows in tables.values() for r in rows})
+    ax.set_xticks(ticks, [f"{t:g}" for t in ticks])
+    ax.xaxis.set_minor_locator(matplotlib.ticker.NullLocator())
     ax.set_xlabel("height over span h/b")
     ax.set_ylabel("trim thrust change with ground effect (%)")
     ax.set_title("Ground effect: thrust demand in level flight at cruise speed")
