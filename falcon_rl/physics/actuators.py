@@ -11,7 +11,9 @@ from __future__ import annotations
 
 import torch
 
-from .params import ModelParams
+from ._warp import warp_func, wp
+from .params import ModelParams, WarpParams
+from .state import SURFACE_POSITION_START, SURFACE_RATE_START, THROTTLE_START, StateVec
 
 
 def command_targets(command: torch.Tensor, p: ModelParams) -> tuple[torch.Tensor, torch.Tensor]:
@@ -50,3 +52,51 @@ def saturate(position: torch.Tensor, rate: torch.Tensor, throttle: torch.Tensor,
     clamped = torch.minimum(torch.maximum(position, p.surface_min), p.surface_max)
     rate = torch.where(clamped != position, torch.zeros_like(rate), rate)
     return clamped, rate, throttle.clamp(0.0, 1.0)
+
+
+# ---------------------------------------------------------------------------------------- warp twins
+@warp_func
+def actuator_derivative_wp(x: StateVec, command: wp.vec4, p: WarpParams, i: int) -> StateVec:
+    """Actuator part of the state derivative of env ``i`` (twin of :func:`actuator_derivative`):
+    only the surface position, surface rate and throttle slots of the result are non-zero."""
+    u = wp.vec4(wp.clamp(command[0], -1.0, 1.0), wp.clamp(command[1], -1.0, 1.0),
+                wp.clamp(command[2], -1.0, 1.0), wp.clamp(command[3], -1.0, 1.0))
+    lo = p.surface_min[i]
+    hi = p.surface_max[i]
+    tau = p.actuator_time_constant[i]
+    wn = p.actuator_natural_frequency[i]
+    zeta = p.actuator_damping[i]
+    d = StateVec()
+    for j in range(3):
+        target = lo[j] + 0.5 * (u[j] + 1.0) * (hi[j] - lo[j])
+        position = x[SURFACE_POSITION_START + j]
+        rate = x[SURFACE_RATE_START + j]
+        if p.actuator_second_order[i, j]:
+            d[SURFACE_POSITION_START + j] = rate
+            d[SURFACE_RATE_START + j] = wn[j] * wn[j] * (target - position) - 2.0 * zeta[j] * wn[j] * rate
+        else:
+            d[SURFACE_POSITION_START + j] = (target - position) / tau[j]
+    throttle_target = 0.5 * (u[3] + 1.0)
+    for m in range(p.num_motors):
+        k = THROTTLE_START + m
+        d[k] = (throttle_target - x[k]) / p.throttle_time_constant[i, m]
+    return d
+
+
+@warp_func
+def saturate_wp(x: StateVec, p: WarpParams, i: int) -> StateVec:
+    """Clamp surfaces to their limits (zeroing the rate where clamped) and throttles to [0, 1]
+    (twin of :func:`saturate`)."""
+    y = StateVec(x)
+    lo = p.surface_min[i]
+    hi = p.surface_max[i]
+    for j in range(3):
+        k = SURFACE_POSITION_START + j
+        clamped = wp.min(wp.max(x[k], lo[j]), hi[j])
+        if clamped != x[k]:
+            y[SURFACE_RATE_START + j] = 0.0
+        y[k] = clamped
+    for m in range(p.num_motors):
+        k = THROTTLE_START + m
+        y[k] = wp.clamp(x[k], 0.0, 1.0)
+    return y

@@ -13,12 +13,14 @@ Ground effect (see ``ground_effect.py``) scales C_L and the induced drag.
 
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass
 
 import torch
 
-from .ground_effect import GE_INDUCED, GE_PAPER, phillips_hunsaker
-from .params import ModelParams
+from ._warp import vector_type, warp_func, warp_struct, wp
+from .ground_effect import GE_INDUCED, GE_PAPER, phillips_hunsaker, phillips_hunsaker_wp
+from .params import ModelParams, WarpParams
 
 MIN_AIRSPEED = 0.1  # m/s, floor for the non-dimensional rates
 
@@ -33,18 +35,37 @@ class AeroOutput:
     kappa_drag: torch.Tensor  # [N]
 
 
+def _monomial_plan(exponents: torch.Tensor) -> tuple[int, torch.Tensor]:
+    """(max power P, flat gather index [T * V] into the [N, V * (P + 1)] power table), cached per
+    exponent tensor (the table is shared and fixed, so this avoids a host sync per call)."""
+    key = id(exponents)
+    cached = _PLANS.get(key)
+    if cached is not None and cached[0]() is exponents and cached[1] == exponents._version:
+        return cached[2], cached[3]
+    max_power = int(exponents.max()) if exponents.numel() else 0
+    var_index = torch.arange(exponents.shape[-1], device=exponents.device)
+    flat = (var_index.unsqueeze(0) * (max_power + 1) + exponents).reshape(-1)
+    ref = weakref.ref(exponents, lambda _ref, key=key: _PLANS.pop(key, None))
+    _PLANS[key] = (ref, exponents._version, max_power, flat)
+    return max_power, flat
+
+
+#: id(exponents) -> (weak reference, tensor version, max power, flat index)
+_PLANS: dict[int, tuple[weakref.ref, int, int, torch.Tensor]] = {}
+
+
 def monomials(x: torch.Tensor, exponents: torch.Tensor) -> torch.Tensor:
     """Evaluate prod_j x_j^e[t, j]. x: [N, V], exponents: [T, V] long -> [N, T].
 
-    Powers are built by repeated multiplication (not ``pow``) so gradients stay finite at x = 0.
+    Powers are built by repeated multiplication (not ``pow``) so gradients stay finite at x = 0,
+    then gathered with one ``index_select`` from the [N, V * (P + 1)] table of powers.
     """
-    max_power = int(exponents.max()) if exponents.numel() else 0
+    max_power, flat = _monomial_plan(exponents)
     powers = [torch.ones_like(x)]
     for _ in range(max_power):
         powers.append(powers[-1] * x)
-    stacked = torch.stack(powers, dim=-1)  # [N, V, P+1]
-    var_index = torch.arange(x.shape[-1], device=x.device)
-    picked = stacked[:, var_index.unsqueeze(0), exponents]  # [N, T, V]
+    table = torch.stack(powers, dim=-1).reshape(x.shape[0], -1)  # [N, V * (P + 1)]
+    picked = table.index_select(1, flat).reshape(x.shape[0], exponents.shape[0], x.shape[-1])
     return picked.prod(dim=-1)
 
 
@@ -58,8 +79,8 @@ def aero_coefficients_oge(
     b = torch.minimum(torch.maximum(beta, p.beta_range[:, 0]), p.beta_range[:, 1])
     x = torch.cat([a.unsqueeze(-1), b.unsqueeze(-1), surfaces], dim=-1)  # [N, 5]
     mono = monomials(x, p.aero_exponents)  # [N, T]
-    coeffs = torch.einsum("nt,ntk->nk", mono, p.aero_coefficients)
-    return coeffs + torch.einsum("nki,ni->nk", p.aero_rates, rates_hat)
+    coeffs = (mono.unsqueeze(-1) * p.aero_coefficients).sum(dim=1)
+    return coeffs + (p.aero_rates * rates_hat.unsqueeze(1)).sum(dim=-1)
 
 
 def apply_ground_effect(coeffs: torch.Tensor, h_over_b: torch.Tensor, p: ModelParams
@@ -101,13 +122,96 @@ def aero_forces(
     """
     v = airspeed.clamp_min(MIN_AIRSPEED)
     half_over_v = 0.5 / v
-    rates_hat = omega_air * torch.stack([p.span, p.chord, p.span], dim=-1) * half_over_v[:, None]
+    lengths = torch.stack([p.span, p.chord, p.span], dim=-1)  # [N, 3]
+    rates_hat = omega_air * lengths * half_over_v[:, None]
     coeffs = aero_coefficients_oge(alpha, beta, surfaces, rates_hat, p)
     coeffs, cdi, kappa_l, kappa_d = apply_ground_effect(coeffs, h_over_b, p)
     qs = 0.5 * density * airspeed**2 * p.wing_area
     cl, cd, cy = coeffs[:, 0], coeffs[:, 1], coeffs[:, 2]
     ca, sa = torch.cos(alpha), torch.sin(alpha)
     force = torch.stack([-cd * ca + cl * sa, cy, -cd * sa - cl * ca], dim=-1) * qs[:, None]
-    lengths = torch.stack([p.span, p.chord, p.span], dim=-1)
     moment = coeffs[:, 3:] * lengths * qs[:, None]
     return AeroOutput(force, moment, coeffs, cdi, kappa_l, kappa_d)
+
+
+# ---------------------------------------------------------------------------------------- warp twins
+Vec6 = vector_type(6)  # (CL, CD, CY, Cl, Cm, Cn)
+
+
+@warp_struct
+class AeroResultWp:
+    """Per-env twin of :class:`AeroOutput`."""
+
+    force_body: wp.vec3
+    moment_body: wp.vec3
+    coefficients: Vec6
+    induced_drag_coefficient: float
+    kappa_lift: float
+    kappa_drag: float
+
+
+@warp_func
+def aero_coefficients_oge_wp(alpha: float, beta: float, surfaces: wp.vec3, rates_hat: wp.vec3,
+                             p: WarpParams, i: int) -> Vec6:
+    """Out-of-ground-effect coefficients of env ``i`` (twin of :func:`aero_coefficients_oge`)."""
+    a_range = p.alpha_range[i]
+    b_range = p.beta_range[i]
+    a = wp.min(wp.max(alpha, a_range[0]), a_range[1])
+    b = wp.min(wp.max(beta, b_range[0]), b_range[1])
+    xs = Vec6(a, b, surfaces[0], surfaces[1], surfaces[2], 0.0)
+    c = Vec6()
+    for t in range(p.num_terms):
+        term = float(1.0)  # noqa: UP018 (a mutable Warp local)
+        for j in range(5):
+            for _k in range(int(p.aero_exponents[t, j])):
+                term = term * xs[j]
+        for k in range(6):
+            c[k] = c[k] + term * p.aero_coefficients[i, t, k]
+    for k in range(6):
+        c[k] = c[k] + (p.aero_rates[i, k, 0] * rates_hat[0] + p.aero_rates[i, k, 1] * rates_hat[1]
+                       + p.aero_rates[i, k, 2] * rates_hat[2])
+    return c
+
+
+@warp_func
+def aero_forces_wp(airspeed: float, alpha: float, beta: float, omega_air: wp.vec3, surfaces: wp.vec3,
+                   density: float, h_over_b: float, p: WarpParams, i: int) -> AeroResultWp:
+    """Body-axis aero force and moment of env ``i`` (twin of :func:`aero_forces`)."""
+    span = p.span[i]
+    chord = p.chord[i]
+    half_over_v = 0.5 / wp.max(airspeed, MIN_AIRSPEED)
+    rates_hat = wp.vec3(omega_air[0] * span, omega_air[1] * chord, omega_air[2] * span) * half_over_v
+    c = aero_coefficients_oge_wp(alpha, beta, surfaces, rates_hat, p, i)
+    cl_inf = c[0]
+    cd_inf = c[1]
+    mode = p.ground_effect_mode[i]
+    kappa_l = float(1.0)  # noqa: UP018 (a mutable Warp local)
+    kappa_d = float(1.0)  # noqa: UP018 (a mutable Warp local)
+    if mode != 0:
+        kappas = phillips_hunsaker_wp(h_over_b, p.aspect_ratio[i], p.taper_ratio[i], cl_inf)
+        kappa_l = kappas[0]
+        kappa_d = kappas[1]
+    induced_factor = 1.0 / (wp.pi * p.oswald[i] * p.aspect_ratio[i])
+    cl = kappa_l * cl_inf
+    cdi_inf = induced_factor * cl_inf * cl_inf
+    cdi = kappa_d * induced_factor * cl * cl
+    cd = cd_inf
+    cdi_out = cdi_inf * kappa_d * kappa_l * kappa_l
+    if mode == GE_INDUCED:
+        cd = cd_inf - cdi_inf + cdi
+        cdi_out = cdi
+    elif mode == GE_PAPER:
+        cd = cd_inf * kappa_d * kappa_l * kappa_l
+    c[0] = cl
+    c[1] = cd
+    qs = 0.5 * density * airspeed * airspeed * p.wing_area[i]
+    ca = wp.cos(alpha)
+    sa = wp.sin(alpha)
+    out = AeroResultWp()
+    out.force_body = wp.vec3(-cd * ca + cl * sa, c[2], -cd * sa - cl * ca) * qs
+    out.moment_body = wp.vec3(c[3] * span, c[4] * chord, c[5] * span) * qs
+    out.coefficients = c
+    out.induced_drag_coefficient = cdi_out
+    out.kappa_lift = kappa_l
+    out.kappa_drag = kappa_d
+    return out

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import torch
 
+from ._warp import warp_func, wp
+
 T0 = 288.15  # K
 P0 = 101_325.0  # Pa
 G0 = 9.80665  # m/s^2
@@ -17,6 +19,7 @@ R_EARTH = 6_356_766.0  # m, geopotential Earth radius
 H_TROPOPAUSE = 11_000.0  # m geopotential
 T_TROPOPAUSE = T0 + LAPSE * H_TROPOPAUSE  # 216.65 K
 P_TROPOPAUSE = P0 * (T_TROPOPAUSE / T0) ** (-G0 / (R_AIR * LAPSE))  # 22,632 Pa
+_PRESSURE_EXPONENT = -G0 / (R_AIR * LAPSE)
 
 
 def isa(altitude_m: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
@@ -44,3 +47,18 @@ def isa(altitude_m: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Ten
 def isa_density(altitude_m: torch.Tensor) -> torch.Tensor:
     """Density only, kg/m^3, shaped like ``altitude_m``."""
     return isa(altitude_m)[2]
+
+
+@warp_func
+def isa_density_wp(altitude_m: float) -> float:
+    """Density kg/m^3 at geometric altitude, m (twin of :func:`isa_density`)."""
+    h = wp.clamp(altitude_m, -1000.0, 20000.0)
+    geopotential = R_EARTH * h / (R_EARTH + h)
+    temperature = T_TROPOPAUSE
+    pressure = float(0.0)  # noqa: UP018 (a mutable Warp local)
+    if geopotential <= H_TROPOPAUSE:
+        temperature = T0 + LAPSE * geopotential
+        pressure = P0 * wp.pow(temperature / T0, _PRESSURE_EXPONENT)
+    else:
+        pressure = P_TROPOPAUSE * wp.exp(-G0 * (geopotential - H_TROPOPAUSE) / (R_AIR * T_TROPOPAUSE))
+    return pressure / (R_AIR * temperature)

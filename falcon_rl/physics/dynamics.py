@@ -16,12 +16,21 @@ from dataclasses import dataclass
 import torch
 
 from . import state as S
-from .actuators import actuator_derivative, saturate
-from .aero import aero_forces
-from .atmosphere import isa_density
-from .params import ModelParams
-from .propulsion import propulsion_forces
-from .rotations import normalize_quaternion, quaternion_derivative, rotation_matrix
+from ._warp import warp_func, wp
+from .actuators import actuator_derivative, actuator_derivative_wp, saturate, saturate_wp
+from .aero import aero_forces, aero_forces_wp
+from .atmosphere import isa_density, isa_density_wp
+from .params import ModelParams, WarpParams
+from .propulsion import propulsion_forces, propulsion_forces_wp
+from .rotations import (
+    normalize_quaternion,
+    normalize_quaternion_wp,
+    quaternion_derivative,
+    quaternion_derivative_wp,
+    rotation_matrix,
+    rotation_matrix_wp,
+)
+from .state import ANGULAR_RATE_START, QUATERNION_START, VELOCITY_START, StateVec
 
 
 @dataclass
@@ -75,7 +84,7 @@ def evaluate(x: torch.Tensor, p: ModelParams, air: AirInputs | None = None) -> E
     omega_air = omega
     if air is not None:
         if air.wind_ned is not None:
-            v_air = v_air - (rot.transpose(-1, -2) @ air.wind_ned.unsqueeze(-1)).squeeze(-1)
+            v_air = v_air - (rot * air.wind_ned.unsqueeze(-1)).sum(dim=-2)  # R^T w
         if air.gust_velocity_body is not None:
             v_air = v_air - air.gust_velocity_body
         if air.gust_rate_body is not None:
@@ -116,14 +125,13 @@ def derivative(x: torch.Tensor, command: torch.Tensor, p: ModelParams,
     q = x[:, S.QUATERNION]
     vel = x[:, S.VELOCITY]
     omega = x[:, S.ANGULAR_RATE]
-    gravity_ned = torch.zeros_like(vel)
-    gravity_ned[:, 2] = p.gravity
-    gravity_body = (ev.rotation.transpose(-1, -2) @ gravity_ned.unsqueeze(-1)).squeeze(-1)
+    # 3x3 products as broadcast multiply + sum: much cheaper than batched matmul for [N, 3, 3].
+    gravity_body = ev.rotation[:, 2, :] * p.gravity[:, None]  # R^T (0, 0, g)
     v_dot = ev.force_body / p.mass[:, None] + gravity_body - torch.linalg.cross(omega, vel, dim=-1)
-    j_omega = (p.inertia @ omega.unsqueeze(-1)).squeeze(-1)
-    w_dot = (p.inertia_inv @ (ev.moment_body - torch.linalg.cross(omega, j_omega, dim=-1))
-             .unsqueeze(-1)).squeeze(-1)
-    p_dot = (ev.rotation @ vel.unsqueeze(-1)).squeeze(-1)
+    j_omega = (p.inertia * omega.unsqueeze(1)).sum(dim=-1)
+    torque = ev.moment_body - torch.linalg.cross(omega, j_omega, dim=-1)
+    w_dot = (p.inertia_inv * torque.unsqueeze(1)).sum(dim=-1)
+    p_dot = (ev.rotation * vel.unsqueeze(1)).sum(dim=-1)
     q_dot = quaternion_derivative(q, omega)
     d_pos, d_rate, d_thr = actuator_derivative(
         x[:, S.SURFACE_POSITION], x[:, S.SURFACE_RATE], x[:, S.THROTTLE_START:], command, p)
@@ -149,3 +157,69 @@ def ground_contact(x: torch.Tensor, p: ModelParams) -> torch.Tensor:
     return (height <= 0.0) | (tip_height.min(dim=-1).values <= 0.0)
 
 
+# ---------------------------------------------------------------------------------------- warp twins
+@warp_func
+def air_data_wp(v_air_body: wp.vec3) -> wp.vec3:
+    """(airspeed, alpha, beta) from the air-relative body velocity (twin of :func:`air_data`)."""
+    u = v_air_body[0]
+    v = v_air_body[1]
+    w = v_air_body[2]
+    airspeed = wp.sqrt(u * u + v * v + w * w + 1.0e-12)
+    return wp.vec3(airspeed, wp.atan2(w, u), wp.asin(wp.clamp(v / airspeed, -1.0, 1.0)))
+
+
+@warp_func
+def state_vec3(x: StateVec, start: int) -> wp.vec3:
+    """Three consecutive state components from ``start``."""
+    return wp.vec3(x[start], x[start + 1], x[start + 2])
+
+
+@warp_func
+def derivative_wp(x: StateVec, command: wp.vec4, wind_ned: wp.vec3, gust_velocity_body: wp.vec3,
+                  gust_rate_body: wp.vec3, p: WarpParams, i: int) -> StateVec:
+    """State derivative of env ``i`` (twin of :func:`derivative`; padded throttle slots stay 0)."""
+    q = wp.vec4(x[QUATERNION_START], x[QUATERNION_START + 1], x[QUATERNION_START + 2],
+                x[QUATERNION_START + 3])
+    vel = state_vec3(x, VELOCITY_START)
+    omega = state_vec3(x, ANGULAR_RATE_START)
+    rot = rotation_matrix_wp(q)
+    rot_t = wp.transpose(rot)
+    v_air = vel - rot_t * wind_ned - gust_velocity_body
+    omega_air = omega - gust_rate_body
+    air = air_data_wp(v_air)
+    height = -x[2]
+    wing_height = height - wp.dot(wp.vec3(rot[2, 0], rot[2, 1], rot[2, 2]), p.wing_quarter_chord[i])
+    density = isa_density_wp(height)
+    lo = p.surface_min[i]
+    hi = p.surface_max[i]
+    surfaces = wp.vec3(wp.min(wp.max(x[13], lo[0]), hi[0]), wp.min(wp.max(x[14], lo[1]), hi[1]),
+                       wp.min(wp.max(x[15], lo[2]), hi[2]))
+    aero = aero_forces_wp(air[0], air[1], air[2], omega_air, surfaces, density, wing_height / p.span[i],
+                          p, i)
+    prop = propulsion_forces_wp(v_air, x, density, p, i)
+    force = aero.force_body + prop.force_body
+    moment = aero.moment_body + prop.moment_body
+    gravity_body = rot_t * wp.vec3(0.0, 0.0, p.gravity[i])
+    v_dot = force / p.mass[i] + gravity_body - wp.cross(omega, vel)
+    w_dot = p.inertia_inv[i] * (moment - wp.cross(omega, p.inertia[i] * omega))
+    p_dot = rot * vel
+    q_dot = quaternion_derivative_wp(q, omega)
+    d = actuator_derivative_wp(x, command, p, i)
+    for k in range(3):
+        d[k] = p_dot[k]
+        d[VELOCITY_START + k] = v_dot[k]
+        d[ANGULAR_RATE_START + k] = w_dot[k]
+    for k in range(4):
+        d[QUATERNION_START + k] = q_dot[k]
+    return d
+
+
+@warp_func
+def project_wp(x: StateVec, p: WarpParams, i: int) -> StateVec:
+    """Renormalise the quaternion and saturate the actuators (twin of :func:`project`)."""
+    y = saturate_wp(x, p, i)
+    q = normalize_quaternion_wp(wp.vec4(x[QUATERNION_START], x[QUATERNION_START + 1],
+                                        x[QUATERNION_START + 2], x[QUATERNION_START + 3]))
+    for k in range(4):
+        y[QUATERNION_START + k] = q[k]
+    return y

@@ -26,6 +26,8 @@ from __future__ import annotations
 
 import torch
 
+from ._warp import warp_func, wp
+
 H_OVER_B_MIN = 0.05
 GE_OFF, GE_INDUCED, GE_PAPER = 0, 1, 2
 GE_MODES = {"off": GE_OFF, "induced": GE_INDUCED, "paper": GE_PAPER}
@@ -79,3 +81,27 @@ def phillips_hunsaker(
         kappa_d = kappa_d * beta_d
         kappa_l = kappa_l / beta_l
     return kappa_l, kappa_d
+
+
+# ---------------------------------------------------------------------------------------- warp twin
+@warp_func
+def phillips_hunsaker_wp(h_over_b: float, aspect_ratio: float, taper_ratio: float,
+                         lift_coefficient: float) -> wp.vec2:
+    """(kappa_L, kappa_D) with the high-lift corrections (twin of :func:`phillips_hunsaker` with
+    a lift coefficient). The powers of x share one logarithm: x^a = exp(a ln x)."""
+    x = wp.max(h_over_b, H_OVER_B_MIN)
+    lx = wp.log(x)
+    delta_d = 1.0 - 0.157 * (wp.pow(taper_ratio, 0.775) - 0.373) * (wp.pow(aspect_ratio, 0.417) - 1.27)
+    delta_l = 1.0 - 2.25 * (wp.pow(taper_ratio, 0.00273) - 0.997) * (wp.pow(aspect_ratio, 0.717) + 13.6)
+    kappa_d = 1.0 - delta_d * wp.exp(-4.74 * wp.exp(0.814 * lx)) - x * x * wp.exp(
+        -3.88 * wp.exp(0.758 * lx))
+    kappa_l = 1.0 + delta_l * 288.0 * wp.exp(0.787 * lx) * wp.exp(-9.14 * wp.exp(0.327 * lx)) / wp.pow(
+        aspect_ratio, 0.882)
+    cl = wp.abs(lift_coefficient)
+    if cl > 0.0:
+        lc = wp.log(cl)
+        beta_d = 1.0 + 0.0361 * wp.exp(1.21 * lc - 1.51 * lx) / wp.pow(aspect_ratio, 1.19)
+        beta_l = 1.0 + 0.269 * wp.exp(1.45 * lc - 1.12 * lx) / wp.pow(aspect_ratio, 3.18)
+        kappa_d = kappa_d * beta_d
+        kappa_l = kappa_l / beta_l
+    return wp.vec2(kappa_l, kappa_d)

@@ -11,6 +11,7 @@ from dataclasses import dataclass, fields
 import torch
 
 from ..airframe import SURFACES, Airframe
+from ._warp import warp_struct, wp
 from .ground_effect import ground_effect_mode
 
 
@@ -134,3 +135,73 @@ def build_params(
         surface_max=rep([ac.limits[1] for ac in acts]),
         aero_exponents=torch.as_tensor(a.exponents, dtype=torch.long, device=device),
     )
+
+
+# ---------------------------------------------------------------------------------------- warp twin
+@warp_struct
+class WarpParams:
+    """Warp views of :class:`ModelParams` (zero-copy, same memory; shapes as in ModelParams).
+
+    [N, 3] fields are arrays of vec3, [N, 3, 3] arrays of mat33, [N, M, 3] 2-D arrays of vec3.
+    Writes to the torch tensors (``ModelParams.assign``) are seen by the next launch without
+    rebinding or recompiling.
+    """
+
+    mass: wp.array(dtype=wp.float32)
+    inertia: wp.array(dtype=wp.mat33)
+    inertia_inv: wp.array(dtype=wp.mat33)
+    gravity: wp.array(dtype=wp.float32)
+    wing_area: wp.array(dtype=wp.float32)
+    span: wp.array(dtype=wp.float32)
+    chord: wp.array(dtype=wp.float32)
+    aspect_ratio: wp.array(dtype=wp.float32)
+    taper_ratio: wp.array(dtype=wp.float32)
+    oswald: wp.array(dtype=wp.float32)
+    wing_quarter_chord: wp.array(dtype=wp.vec3)
+    aero_coefficients: wp.array3d(dtype=wp.float32)
+    aero_rates: wp.array3d(dtype=wp.float32)
+    alpha_range: wp.array(dtype=wp.vec2)
+    beta_range: wp.array(dtype=wp.vec2)
+    ground_effect_mode: wp.array(dtype=wp.int32)
+    motor_position: wp.array2d(dtype=wp.vec3)
+    motor_axis: wp.array2d(dtype=wp.vec3)
+    motor_spin: wp.array2d(dtype=wp.float32)
+    disk_area: wp.array2d(dtype=wp.float32)
+    thrust_coefficient: wp.array2d(dtype=wp.float32)
+    discharge_speed: wp.array2d(dtype=wp.float32)
+    torque_coefficient: wp.array2d(dtype=wp.float32)
+    torque_speed_constant: wp.array2d(dtype=wp.float32)
+    throttle_time_constant: wp.array2d(dtype=wp.float32)
+    actuator_second_order: wp.array2d(dtype=wp.bool)
+    actuator_time_constant: wp.array(dtype=wp.vec3)
+    actuator_natural_frequency: wp.array(dtype=wp.vec3)
+    actuator_damping: wp.array(dtype=wp.vec3)
+    surface_min: wp.array(dtype=wp.vec3)
+    surface_max: wp.array(dtype=wp.vec3)
+    aero_exponents: wp.array2d(dtype=wp.int64)
+    num_terms: int
+    num_motors: int
+
+
+_WARP_VECTOR_FIELDS = {
+    "inertia": "mat33", "inertia_inv": "mat33", "wing_quarter_chord": "vec3", "alpha_range": "vec2",
+    "beta_range": "vec2", "motor_position": "vec3", "motor_axis": "vec3",
+    "actuator_time_constant": "vec3", "actuator_natural_frequency": "vec3", "actuator_damping": "vec3",
+    "surface_min": "vec3", "surface_max": "vec3",
+}
+
+
+def bind_warp_params(p: ModelParams) -> WarpParams:
+    """Zero-copy Warp views of float32 ``p`` (its tensors must stay allocated and contiguous)."""
+    out = WarpParams()
+    for f in fields(p):
+        tensor = getattr(p, f.name)
+        if tensor.is_floating_point() and tensor.dtype != torch.float32:
+            raise TypeError(f"the warp backend runs in float32; {f.name} is {tensor.dtype}")
+        if not tensor.is_contiguous():
+            raise ValueError(f"parameter {f.name} must be contiguous to be bound zero-copy")
+        dtype = getattr(wp, _WARP_VECTOR_FIELDS[f.name]) if f.name in _WARP_VECTOR_FIELDS else None
+        setattr(out, f.name, wp.from_torch(tensor, dtype=dtype))
+    out.num_terms = int(p.aero_exponents.shape[0])
+    out.num_motors = int(p.motor_spin.shape[1])
+    return out

@@ -12,7 +12,9 @@ from __future__ import annotations
 
 import torch
 
-from .params import ModelParams
+from ._warp import warp_func, warp_struct, wp
+from .params import ModelParams, WarpParams
+from .state import THROTTLE_START, StateVec
 
 
 def motor_thrust(v_air_body: torch.Tensor, throttle: torch.Tensor, density: torch.Tensor,
@@ -36,3 +38,45 @@ def propulsion_forces(v_air_body: torch.Tensor, throttle: torch.Tensor, density:
     moment_m = torch.linalg.cross(p.motor_position, force_m, dim=-1) + torque.unsqueeze(-1) * (
         p.motor_axis)
     return force_m.sum(dim=1), moment_m.sum(dim=1), thrust
+
+
+# ---------------------------------------------------------------------------------------- warp twins
+@warp_struct
+class PropulsionResultWp:
+    """Per-env twin of :func:`propulsion_forces`' output (thrust summed over motors)."""
+
+    force_body: wp.vec3
+    moment_body: wp.vec3
+    thrust: float
+
+
+@warp_func
+def motor_thrust_wp(v_air_body: wp.vec3, throttle: float, density: float, p: WarpParams, i: int,
+                    m: int) -> float:
+    """Thrust of motor ``m`` of env ``i``, N (twin of :func:`motor_thrust`)."""
+    v_axial = wp.dot(p.motor_axis[i, m], v_air_body)
+    delta = wp.clamp(throttle, 0.0, 1.0)
+    v_discharge = v_axial + delta * (p.discharge_speed[i, m] - v_axial)
+    thrust = 0.5 * density * p.disk_area[i, m] * p.thrust_coefficient[i, m] * v_discharge * (
+        v_discharge - v_axial)
+    return wp.max(thrust, 0.0)
+
+
+@warp_func
+def propulsion_forces_wp(v_air_body: wp.vec3, x: StateVec, density: float, p: WarpParams, i: int
+                         ) -> PropulsionResultWp:
+    """Force and moment about the CG of all motors of env ``i``; throttles are read from the
+    state vector ``x`` (twin of :func:`propulsion_forces`)."""
+    out = PropulsionResultWp()
+    for m in range(p.num_motors):
+        throttle = x[THROTTLE_START + m]
+        thrust = motor_thrust_wp(v_air_body, throttle, density, p, i, m)
+        axis = p.motor_axis[i, m]
+        force = thrust * axis
+        delta = wp.clamp(throttle, 0.0, 1.0)
+        ks = p.torque_speed_constant[i, m] * delta
+        torque = -p.motor_spin[i, m] * p.torque_coefficient[i, m] * ks * ks
+        out.force_body = out.force_body + force
+        out.moment_body = out.moment_body + wp.cross(p.motor_position[i, m], force) + torque * axis
+        out.thrust = out.thrust + thrust
+    return out

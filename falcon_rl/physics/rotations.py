@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import torch
 
+from ._warp import warp_func, wp
+
 
 def rotation_matrix(q: torch.Tensor) -> torch.Tensor:
     """Body-to-NED direction cosine matrix. q: [N, 4] -> [N, 3, 3]."""
@@ -76,3 +78,62 @@ def normalize_quaternion(q: torch.Tensor) -> torch.Tensor:
     """Project [N, 4] onto the unit sphere, with a positive scalar part (q and -q are equal)."""
     q = q / torch.linalg.vector_norm(q, dim=-1, keepdim=True).clamp_min(1e-12)
     return torch.where(q[..., :1] < 0, -q, q)
+
+
+# ---------------------------------------------------------------------------------------- warp twins
+# Inside kernels a quaternion is a wp.vec4 in the same scalar-first order (w, x, y, z) as the torch
+# state; Warp's own wp.quat is (x, y, z, w), so convert with quat_to_warp / quat_from_warp.
+
+
+@warp_func
+def quat_to_warp(q: wp.vec4) -> wp.quat:
+    """(w, x, y, z) vec4 -> Warp quaternion (x, y, z, w)."""
+    return wp.quat(q[1], q[2], q[3], q[0])
+
+
+@warp_func
+def quat_from_warp(q: wp.quat) -> wp.vec4:
+    """Warp quaternion (x, y, z, w) -> (w, x, y, z) vec4."""
+    return wp.vec4(q[3], q[0], q[1], q[2])
+
+
+@warp_func
+def rotation_matrix_wp(q: wp.vec4) -> wp.mat33:
+    """Body-to-NED DCM of a (w, x, y, z) quaternion (twin of :func:`rotation_matrix`)."""
+    w = q[0]
+    x = q[1]
+    y = q[2]
+    z = q[3]
+    return wp.mat33(
+        1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - w * z), 2.0 * (x * z + w * y),
+        2.0 * (x * y + w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - w * x),
+        2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y),
+    )
+
+
+@warp_func
+def quaternion_derivative_wp(q: wp.vec4, omega: wp.vec3) -> wp.vec4:
+    """q_dot = 1/2 q (x) (0, omega) (twin of :func:`quaternion_derivative`)."""
+    w = q[0]
+    x = q[1]
+    y = q[2]
+    z = q[3]
+    p = omega[0]
+    qq = omega[1]
+    r = omega[2]
+    return 0.5 * wp.vec4(
+        -x * p - y * qq - z * r,
+        w * p + y * r - z * qq,
+        w * qq + z * p - x * r,
+        w * r + x * qq - y * p,
+    )
+
+
+@warp_func
+def normalize_quaternion_wp(q: wp.vec4) -> wp.vec4:
+    """Unit quaternion with a non-negative scalar part (twin of :func:`normalize_quaternion`)."""
+    n = wp.max(wp.length(q), 1.0e-12)
+    u = q / n
+    if u[0] < 0.0:
+        u = -u
+    return u

@@ -16,6 +16,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ._warp import vector_type
+
 POSITION = slice(0, 3)
 QUATERNION = slice(3, 7)
 VELOCITY = slice(7, 10)
@@ -23,7 +25,17 @@ ANGULAR_RATE = slice(10, 13)
 SURFACE_POSITION = slice(13, 16)
 SURFACE_RATE = slice(16, 19)
 THROTTLE_START = 19
+# Integer offsets of the slices above, for the Warp kernels (which index one element at a time).
+QUATERNION_START = 3
+VELOCITY_START = 7
+ANGULAR_RATE_START = 10
+SURFACE_POSITION_START = 13
+SURFACE_RATE_START = 16
 NUM_CONTROLS = 4
+#: Most motors the Warp kernels support: their state is a fixed-length vector (unused slots zero).
+WARP_MAX_MOTORS = 8
+#: Warp twin of one env's state row, padded to ``WARP_MAX_MOTORS`` throttles.
+StateVec = vector_type(THROTTLE_START + WARP_MAX_MOTORS)
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,60 @@
+"""Optional Warp import shared by the subsystem modules.
+
+Each subsystem module defines its ``@wp.func`` twin with :func:`warp_func`. When warp-lang is not
+importable the twins become placeholders that raise on use, so the torch backend keeps working.
+Kernel compilation is lazy (first launch) and cached on disk by Warp; :func:`init_warp` runs
+``wp.init()`` once, quietly (Warp's module-load messages would otherwise reach stdout).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+try:
+    import warp as wp
+except ImportError:  # pragma: no cover - warp-lang is a core dependency
+    wp = None  # type: ignore[assignment]
+
+_initialised = False
+
+
+def warp_available() -> bool:
+    """True when warp-lang can be imported."""
+    return wp is not None
+
+
+def init_warp() -> Any:
+    """Initialise Warp once (quiet) and return the ``warp`` module."""
+    global _initialised
+    if wp is None:
+        raise RuntimeError("the warp backend needs the warp-lang package (pip install warp-lang)")
+    if not _initialised:
+        if hasattr(wp, "LOG_WARNING"):
+            wp.config.log_level = wp.LOG_WARNING
+        else:  # older Warp releases
+            wp.config.quiet = True
+        wp.init()
+        _initialised = True
+    return wp
+
+
+def warp_func(fn: Callable[..., Any]) -> Any:
+    """``@wp.func`` when Warp is available, else a placeholder that raises when called."""
+    if wp is not None:
+        return wp.func(fn)
+
+    def unavailable(*_args: Any, **_kwargs: Any) -> Any:
+        raise RuntimeError("warp-lang is not installed")
+
+    return unavailable
+
+
+def warp_struct(cls: type) -> Any:
+    """``@wp.struct`` when Warp is available, else the plain class."""
+    return wp.struct(cls) if wp is not None else cls
+
+
+def vector_type(length: int) -> Any:
+    """A float32 Warp vector type of ``length`` components (None without Warp)."""
+    return wp.types.vector(length=length, dtype=wp.float32) if wp is not None else None
