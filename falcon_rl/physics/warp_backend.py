@@ -3,8 +3,10 @@
 The engine binds zero-copy Warp views of the simulator's tensors once (state, command, air motion,
 parameters), records one launch of :func:`~falcon_rl.physics.warp_kernels.step_kernel` and replays it
 on every step: one kernel launch per env step, no host copies. Parameters written in place (domain
-randomisation through ``ModelParams.assign``) are seen by the next launch; replacing a tensor or the
-whole ``ModelParams`` object, or changing ``dt`` / ``integrator``, re-binds the launch.
+randomisation through ``ModelParams.assign``) are seen by the next launch. Replacing the whole
+``ModelParams`` object, a state buffer, ``dt`` or ``integrator`` re-binds on the next step; replacing a
+single parameter tensor re-binds at the next reset (or call :meth:`WarpEngine.rebind`), which keeps
+that 30-tensor check off the per-step path.
 On CUDA the launch is queued on torch's current stream, so no synchronisation is needed.
 """
 
@@ -51,14 +53,15 @@ class WarpEngine:
         self._is_cuda = sim.device.type == "cuda"
         self._key: tuple[Any, ...] = ()
         self._launch: Any = None
-        self._bind()
+        self.rebind()
 
     def _binding_key(self) -> tuple[Any, ...]:
         sim = self.sim
         return (id(sim.params), sim.x.data_ptr(), sim.command.data_ptr(), sim.wind_ned.data_ptr(),
                 sim.gust_velocity_body.data_ptr(), sim.gust_rate_body.data_ptr(), sim.dt, sim.integrator)
 
-    def _bind(self) -> None:
+    def rebind(self) -> None:
+        """Bind fresh views of the simulator's tensors and record the launch again."""
         wp, sim = self._wp, self.sim
         for name in ("x", "command", "wind_ned", "gust_velocity_body", "gust_rate_body"):
             if not getattr(sim, name).is_contiguous():
@@ -82,8 +85,8 @@ class WarpEngine:
 
     def step(self) -> None:
         """Advance ``sim.x`` by one dt in place (one kernel launch)."""
-        if self._binding_key() != self._key or self._params_moved():
-            self._bind()
+        if self._binding_key() != self._key:
+            self.rebind()
         if self._is_cuda:
             self._launch.launch(stream=self._wp.stream_from_torch(self.sim.device))
         else:
@@ -94,5 +97,7 @@ class WarpEngine:
                                                          self._params_ptrs, strict=True))
 
     def after_reset(self, mask: torch.Tensor | None) -> None:
-        """Resets are torch writes into the bound memory: nothing to do on the Warp side."""
+        """Resets are torch writes into the bound memory; re-bind only if a tensor was replaced."""
         del mask
+        if self._params_moved():
+            self.rebind()
