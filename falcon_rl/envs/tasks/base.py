@@ -1,0 +1,233 @@
+"""What every flight task shares: the trim cache, the command assembly, the stall and ground
+terminations, random draws from the env's generator and the bookkeeping of the previous action.
+
+A task is one small module holding a config dataclass and a :class:`Task` subclass. The env calls
+
+    initial = task.sample_initial(mask)      # before Simulator.reset(initial, mask)
+    task.after_reset(state, mask)            # reference and filter buffers of the reset rows
+    command = task.command(action)           # [N, A] policy action -> [N, 4] simulator command
+    obs, reward, terminated = task.step(state, action)       # after the physics steps
+    obs = task.observe(state)                # [N, D] scaled and clipped observation (after reset)
+
+``step`` runs advance (clock, reference) -> update (filters fed by the new state) -> reward ->
+terminated -> remember the action as a_{t-1} -> observe.
+
+and publishes ``task.info()`` (named [N] / [N, k] tensors) under the ("task", ...) keys.
+
+Termination shared by all tasks (the paper's altitude task, reused by the others):
+
+    terminated = ground_contact  |  |alpha| > 1.5 alpha_stall  |  V_a < V_stall
+"""
+
+from __future__ import annotations
+
+import math
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from typing import ClassVar
+
+import torch
+from tensordict import TensorDictBase
+
+from ...airframe import Airframe
+from ...physics import Simulator, trim_level
+from ...physics import state as S
+from ...physics.rotations import quaternion_to_euler
+
+DEG = math.pi / 180.0
+
+_TRIM_CACHE: dict[tuple[str, str, float, float, str], tuple[torch.Tensor, torch.Tensor]] = {}
+
+
+@dataclass(frozen=True)
+class TrimPoint:
+    """Straight and level trim in the simulator's device and dtype (one row, broadcastable)."""
+
+    quaternion: torch.Tensor  # [4]
+    velocity_body: torch.Tensor  # [3] m/s
+    surface_position: torch.Tensor  # [3] rad
+    throttle: torch.Tensor  # [M]
+    command: torch.Tensor  # [4] normalised command that holds the trim
+    pitch: float  # rad (= trim alpha in still air)
+
+
+def trim_point(sim: Simulator, airspeed: float, height: float = 100.0,
+               ground_effect: bool | str = True) -> TrimPoint:
+    """Trim of ``sim.airframe`` at ``airspeed`` and ``height``, solved once per airframe, airspeed,
+    height and ground-effect mode and cached for the process."""
+    airframe: Airframe = sim.airframe
+    key = (airframe.name, str(airframe.path), float(airspeed), float(height), str(ground_effect))
+    if key not in _TRIM_CACHE:
+        trim = trim_level(airframe, airspeed, height, ground_effect=ground_effect)
+        _TRIM_CACHE[key] = (trim.state[0].clone(), trim.commands[0].clone())
+    x, command = (t.to(sim.device, sim.dtype) for t in _TRIM_CACHE[key])
+    return TrimPoint(
+        quaternion=x[S.QUATERNION], velocity_body=x[S.VELOCITY], surface_position=x[S.SURFACE_POSITION],
+        throttle=x[S.THROTTLE_START:], command=command,
+        pitch=float(quaternion_to_euler(x[S.QUATERNION][None])[0, 1]),
+    )
+
+
+@dataclass
+class TaskConfig:
+    """Fields every task config has. Times in s, speeds in m/s."""
+
+    #: Episode horizon in s (truncation, not termination).
+    episode_seconds: float = 30.0
+    #: Airspeed of the initial trim; None means the airframe's cruise speed.
+    trim_airspeed: float | None = None
+    #: Stall termination: |alpha| beyond this multiple of the airframe's alpha_stall.
+    stall_alpha_factor: float = 1.5
+
+
+class Task(ABC):
+    """Base of the flight tasks. N envs; A action channels; D observation entries."""
+
+    name: ClassVar[str]
+    observation_dim: ClassVar[int]
+    action_dim: ClassVar[int]
+    observation_clip: ClassVar[float]
+    #: Simulator command channels the action drives, in action order (0 elevator .. 3 throttle).
+    action_channels: ClassVar[tuple[int, ...]] = (0, 1, 2, 3)
+
+    def __init__(self, config: TaskConfig, sim: Simulator, generator: torch.Generator,
+                 env_dt: float, ground_effect: bool | str = True):
+        self.config = config
+        #: Length of one env step (decimation x physics dt), s.
+        self.env_dt = float(env_dt)
+        self.sim = sim
+        self.airframe: Airframe = sim.airframe
+        self.generator = generator
+        self.num_envs = sim.num_envs
+        self.device = sim.device
+        self.dtype = sim.dtype
+        env = self.airframe.envelope
+        self.trim_airspeed = float(config.trim_airspeed or env.cruise_speed)
+        self.trim = trim_point(sim, self.trim_airspeed, ground_effect=ground_effect)
+        self.stall_speed = float(env.stall_speed)
+        self.stall_alpha = float(config.stall_alpha_factor * self.airframe.aero.alpha_stall)
+        n = self.num_envs
+        #: Full simulator command, trim in the channels the action does not drive. [N, 4]
+        self.command_buffer = self.trim.command.expand(n, 4).clone()
+        self.channels = torch.tensor(self.action_channels, device=self.device)
+        #: Action of the previous env step (zero after a reset). [N, A]
+        self.previous_action = torch.zeros(n, self.action_dim, device=self.device, dtype=self.dtype)
+        self.time = torch.zeros(n, device=self.device, dtype=self.dtype)
+
+    @property
+    def episode_seconds(self) -> float:
+        """Episode horizon, s (the env truncates after this many seconds)."""
+        return self.config.episode_seconds
+
+    # ------------------------------------------------------------------ randomness
+    def uniform(self, low: float | torch.Tensor, high: float | torch.Tensor, *shape: int) -> torch.Tensor:
+        """U(low, high) of shape [N, *shape] from the env's generator."""
+        u = torch.rand(self.num_envs, *shape, generator=self.generator, device=self.device,
+                       dtype=self.dtype)
+        return low + (high - low) * u
+
+    def random_sign(self, *shape: int) -> torch.Tensor:
+        """+-1 with equal probability, [N, *shape]."""
+        return torch.where(self.uniform(0.0, 1.0, *shape) < 0.5, -1.0, 1.0).to(self.dtype)
+
+    def choice(self, values: tuple[float, ...]) -> torch.Tensor:
+        """One of ``values`` per env, uniformly. [N]"""
+        table = torch.tensor(values, device=self.device, dtype=self.dtype)
+        index = torch.randint(len(values), (self.num_envs,), generator=self.generator, device=self.device)
+        return table[index]
+
+    # ------------------------------------------------------------------ hooks
+    def trim_initial(self, yaw: torch.Tensor | None = None) -> dict[str, torch.Tensor]:
+        """Initial fields of straight and level trim at ``trim_airspeed``, heading ``yaw`` [N] rad
+        (north when None); position and height are left to the task."""
+        t = self.trim
+        initial = {"velocity_body": t.velocity_body, "surface_position": t.surface_position,
+                   "throttle": t.throttle, "command": t.command,
+                   "angular_rate_body": torch.zeros(3, device=self.device, dtype=self.dtype)}
+        if yaw is None:
+            initial["quaternion"] = t.quaternion
+        else:
+            zeros = torch.zeros_like(yaw)
+            initial["euler"] = torch.stack([zeros, zeros + t.pitch, yaw], dim=-1)
+        return initial
+
+    @abstractmethod
+    def sample_initial(self, mask: torch.Tensor) -> dict[str, torch.Tensor]:
+        """Draw the initial conditions and episode parameters of all envs; keep those of the rows
+        where ``mask`` [N] is True. Returns the ``initial`` mapping for ``Simulator.reset``."""
+
+    def after_reset(self, state: TensorDictBase, mask: torch.Tensor) -> None:
+        """Reset per-episode buffers of the rows in ``mask`` [N] from the fresh ``state``."""
+        self.previous_action[mask] = 0.0
+        self.time[mask] = 0.0
+
+    def command(self, action: torch.Tensor) -> torch.Tensor:
+        """[N, A] action in [-1, 1] -> [N, 4] simulator command (trim in undriven channels)."""
+        self.command_buffer[:, self.channels] = action.to(self.dtype).clamp(-1.0, 1.0)
+        return self.command_buffer
+
+    def advance(self) -> None:
+        """Move the task clock (and any reference) forward by one env step."""
+        self.time += self.env_dt
+
+    @abstractmethod
+    def observe(self, state: TensorDictBase) -> torch.Tensor:
+        """[N, D] observation, scaled and clipped to +-observation_clip."""
+
+    @abstractmethod
+    def reward(self, state: TensorDictBase, action: torch.Tensor) -> torch.Tensor:
+        """[N] reward of the transition that ended in ``state`` under ``action`` [N, A]."""
+
+    def terminated(self, state: TensorDictBase) -> torch.Tensor:
+        """[N] bool: ground contact or stall (|alpha| > k alpha_stall or V_a < V_stall)."""
+        return (state["ground_contact"] | (state["alpha"].abs() > self.stall_alpha)
+                | (state["airspeed"] < self.stall_speed))
+
+    def update(self, state: TensorDictBase) -> None:
+        """Per-step filters fed by the new state (integrals, rates, target release); optional."""
+        return None
+
+    def step(self, state: TensorDictBase, action: torch.Tensor
+             ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """(observation [N, D], reward [N], terminated [N] bool) after an env step that applied
+        ``action`` [N, A] and ended in ``state``."""
+        self.advance()
+        self.update(state)
+        reward = self.reward(state, action)
+        terminated = self.terminated(state)
+        self.previous_action.copy_(action)
+        return self.observe(state), reward, terminated
+
+    @abstractmethod
+    def info(self) -> dict[str, torch.Tensor]:
+        """Task quantities published under ("task", name): references and tracking errors."""
+
+    def info_shapes(self) -> dict[str, tuple[int, ...]]:
+        """Trailing shapes of :meth:`info` entries (after the batch dim)."""
+        return {k: tuple(v.shape[1:]) for k, v in self.info().items()}
+
+
+def gaussian(error: torch.Tensor, sigma: float) -> torch.Tensor:
+    """exp(-e^2 / (2 sigma^2)), elementwise."""
+    return torch.exp(-0.5 * (error / sigma) ** 2)
+
+
+def taper(error: torch.Tensor, band: float) -> torch.Tensor:
+    """Linear taper max(0, 1 - |e| / band): 1 on the reference, 0 outside the band."""
+    return (1.0 - error.abs() / band).clamp_min(0.0)
+
+
+def normalised_surfaces(state: TensorDictBase, sim: Simulator) -> torch.Tensor:
+    """Surface positions [N, 3] mapped onto [-1, 1] by the actuator limits (the command's scale)."""
+    lo, hi = sim.params.surface_min, sim.params.surface_max
+    return 2.0 * (state["surface_position"] - lo) / (hi - lo) - 1.0
+
+
+def wrap_angle(angle: torch.Tensor) -> torch.Tensor:
+    """Wrap to (-pi, pi]."""
+    return torch.remainder(angle + math.pi, 2.0 * math.pi) - math.pi
+
+
+def airspeed_margin_penalty(airspeed: torch.Tensor, safe_airspeed: float) -> torch.Tensor:
+    """((V_safe - V_a) / V_safe)^2 below V_safe, 0 above. [N]"""
+    return ((safe_airspeed - airspeed).clamp_min(0.0) / safe_airspeed) ** 2

@@ -1,0 +1,161 @@
+"""3D trajectory tracking: follow a point moving along a climbing or descending turn.
+
+Episode: trimmed level flight at cruise and ``initial_height``, heading north, at the origin. The
+reference point starts ``U(lead_min, lead_max)`` m ahead, +-U(0, ``lateral_max``) m to the side and
++-U(0, ``vertical_max``) m off in height, and moves at cruise speed V along a helix arc of turn
+direction s = +-1, radius R = V^2 / (g tan phi_ref) with phi_ref ~ U(``bank_min``, ``bank_max``)
+x max_bank, and climb rate hdot_ref ~ U(-1, 1) ``climb_fraction`` x climb_rate_limit:
+
+    omega = V / R,  p_ref(t) = p_0 + (R sin(omega t), s R (1 - cos(omega t)), -hdot_ref t)   (NED)
+    v_ref(t) = (V cos(omega t), s V sin(omega t), -hdot_ref)
+
+Errors e_p = p - p_ref and e_v = v - v_ref rotated into the heading frame (yaw psi only:
+forward, right, down). Observation (17, clipped to [-5, 5]):
+
+    o = [e_p/25, e_v/sigma_V, phi/(pi/4), theta/(pi/4), p/2, q/2, r/2, alpha/20deg, beta/20deg,
+         a_{t-1}]
+
+sigma_V = ``airspeed_scale`` x cruise. Action [delta_e, delta_a, delta_r, delta_t]. Reward:
+
+    r = w_p exp(-|e_p|^2 / 2 sigma_p^2) + w_v exp(-|e_v|^2 / 2 sigma_v^2)
+        - w_E ((V_safe - V_a)/V_safe)^2 [V_a < V_safe] - w_s ||a_t - a_{t-1}||^2
+
+Termination: ground contact, stall, or |e_p| > ``lost_distance``. Published: position_error
+(|e_p|), position_error_ned [3], reference_position [3], reference_velocity [3].
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import torch
+from tensordict import TensorDictBase
+
+from ...physics import Simulator
+from ..maneuvers import GRAVITY
+from .base import DEG, Task, TaskConfig, airspeed_margin_penalty, gaussian
+
+
+@dataclass
+class TrajectoryConfig(TaskConfig):
+    """3D trajectory tracking parameters (SI units)."""
+
+    episode_seconds: float = 40.0
+    initial_height: float = 80.0
+    lead_min: float = 10.0
+    lead_max: float = 40.0
+    lateral_max: float = 20.0
+    vertical_max: float = 10.0
+    bank_min: float = 0.1
+    bank_max: float = 0.5
+    climb_fraction: float = 0.5
+    lost_distance: float = 250.0
+    airspeed_scale: float = 0.1
+    w_position: float = 1.0
+    sigma_position: float = 10.0
+    w_velocity: float = 0.5
+    sigma_velocity_fraction: float = 0.1
+    w_energy: float = 2.0
+    safe_airspeed_factor: float = 1.3
+    w_smooth: float = 0.05
+
+
+class TrajectoryTask(Task):
+    """Tracking of a moving 3D reference point; see the module docstring."""
+
+    name = "trajectory"
+    observation_dim = 17
+    action_dim = 4
+    observation_clip = 5.0
+    config: TrajectoryConfig
+
+    def __init__(self, config: TrajectoryConfig, sim: Simulator, generator: torch.Generator,
+                 env_dt: float, ground_effect: bool | str = True):
+        super().__init__(config, sim, generator, env_dt, ground_effect)
+        n, kw = self.num_envs, {"device": self.device, "dtype": self.dtype}
+        self.speed = float(self.airframe.envelope.cruise_speed)
+        self.start = torch.zeros(n, 3, **kw)  # p_0, NED
+        self.radius = torch.ones(n, **kw)
+        self.turn = torch.ones(n, **kw)  # s = +-1
+        self.climb = torch.zeros(n, **kw)
+        self.reference_position = torch.zeros(n, 3, **kw)
+        self.reference_velocity = torch.zeros(n, 3, **kw)
+        self.position_error = torch.zeros(n, 3, **kw)  # heading frame
+        self.velocity_error = torch.zeros(n, 3, **kw)  # heading frame
+        self.position_error_ned = torch.zeros(n, 3, **kw)
+        self.safe_airspeed = config.safe_airspeed_factor * self.airframe.envelope.stall_speed
+
+    def sample_initial(self, mask: torch.Tensor) -> dict[str, torch.Tensor]:
+        cfg = self.config
+        env = self.airframe.envelope
+        start = torch.stack([
+            self.uniform(cfg.lead_min, cfg.lead_max),
+            self.uniform(-cfg.lateral_max, cfg.lateral_max),
+            -cfg.initial_height + self.uniform(-cfg.vertical_max, cfg.vertical_max)], dim=-1)
+        bank = self.uniform(cfg.bank_min, cfg.bank_max) * env.max_bank
+        radius = self.speed**2 / (GRAVITY * torch.tan(bank))
+        climb = self.uniform(-cfg.climb_fraction, cfg.climb_fraction) * env.climb_rate_limit
+        self.start.copy_(torch.where(mask[:, None], start, self.start))
+        for buffer, value in ((self.radius, radius), (self.turn, self.random_sign()), (self.climb, climb)):
+            buffer.copy_(torch.where(mask, value, buffer))
+        height = torch.full((self.num_envs,), cfg.initial_height, device=self.device, dtype=self.dtype)
+        return {**self.trim_initial(), "position_ned": torch.zeros(3, device=self.device, dtype=self.dtype),
+                "height": height}
+
+    def after_reset(self, state: TensorDictBase, mask: torch.Tensor) -> None:
+        super().after_reset(state, mask)
+        self.advance_reference()
+        self.update(state)
+
+    def advance_reference(self) -> None:
+        """p_ref and v_ref at the task time (closed form)."""
+        angle = self.speed / self.radius * self.time
+        s, c = torch.sin(angle), torch.cos(angle)
+        offset = torch.stack([self.radius * s, self.turn * self.radius * (1.0 - c), -self.climb * self.time],
+                             dim=-1)
+        self.reference_position.copy_(self.start + offset)
+        self.reference_velocity.copy_(torch.stack([self.speed * c, self.turn * self.speed * s, -self.climb],
+                                                  dim=-1))
+
+    def advance(self) -> None:
+        super().advance()
+        self.advance_reference()
+
+    def update(self, state: TensorDictBase) -> None:
+        yaw = state["euler"][:, 2]
+        sin_y, cos_y = torch.sin(yaw), torch.cos(yaw)
+        e_p = state["position_ned"] - self.reference_position
+        e_v = state["velocity_ned"] - self.reference_velocity
+        self.position_error_ned.copy_(e_p)
+        for out, e in ((self.position_error, e_p), (self.velocity_error, e_v)):
+            out.copy_(torch.stack([cos_y * e[:, 0] + sin_y * e[:, 1], -sin_y * e[:, 0] + cos_y * e[:, 1],
+                                   e[:, 2]], dim=-1))
+
+    def observe(self, state: TensorDictBase) -> torch.Tensor:
+        sigma_v = self.config.airspeed_scale * self.speed
+        air = torch.stack([state["alpha"], state["beta"]], dim=-1) / (20.0 * DEG)
+        obs = torch.cat([self.position_error / 25.0, self.velocity_error / sigma_v,
+                         state["euler"][:, :2] / (math.pi / 4), state["angular_rate_body"] / 2.0, air,
+                         self.previous_action], dim=-1)
+        return obs.clamp(-self.observation_clip, self.observation_clip)
+
+    def reward(self, state: TensorDictBase, action: torch.Tensor) -> torch.Tensor:
+        cfg = self.config
+        distance = torch.linalg.vector_norm(self.position_error, dim=-1)
+        speed_error = torch.linalg.vector_norm(self.velocity_error, dim=-1)
+        action_rate = ((action - self.previous_action) ** 2).sum(-1)
+        return (cfg.w_position * gaussian(distance, cfg.sigma_position)
+                + cfg.w_velocity * gaussian(speed_error, cfg.sigma_velocity_fraction * self.speed)
+                - cfg.w_energy * airspeed_margin_penalty(state["airspeed"], self.safe_airspeed)
+                - cfg.w_smooth * action_rate)
+
+    def terminated(self, state: TensorDictBase) -> torch.Tensor:
+        distance = torch.linalg.vector_norm(self.position_error, dim=-1)
+        return super().terminated(state) | (distance > self.config.lost_distance)
+
+    def info(self) -> dict[str, torch.Tensor]:
+        return {"position_error": torch.linalg.vector_norm(self.position_error, dim=-1),
+                "position_error_ned": self.position_error_ned.clone(),
+                "reference_position": self.reference_position.clone(),
+                "reference_velocity": self.reference_velocity.clone()}
