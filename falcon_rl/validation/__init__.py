@@ -1,0 +1,1 @@
+"""Cross-validation against other simulators (JSBSim export and trajectory comparison)."""

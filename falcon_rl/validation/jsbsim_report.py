@@ -1,0 +1,77 @@
+"""Tables (the reference paper's layout) and overlay figures of JSBSim cross-validation runs."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+
+from .jsbsim_compare import HEADLINE, CaseResult
+from .jsbsim_fly import CHANNELS
+
+GE_LABEL = {"off": "GE off", "on": "GE on (falcon-rl only)", "both": "GE on (both)"}
+TITLE = {"altitude": "Altitude", "pitch_rate": "Pitch rate", "airspeed": "Airspeed"}
+PLOTTED = (("altitude", 1.0, "altitude (m)"), ("pitch_rate", 57.29577951308232, "pitch rate (deg/s)"),
+           ("airspeed", 1.0, "airspeed (m/s)"), ("alpha", 57.29577951308232, "alpha (deg)"))
+
+
+def _cell(metrics: dict[str, float | None], unit: str) -> str:
+    r = "   -   " if metrics["r"] is None else f"{metrics['r']:.5f}"
+    return f"{r} ({metrics['rmse']:.1e} {unit})"
+
+
+def format_table(results: Sequence[CaseResult], channels: Sequence[str] = HEADLINE) -> str:
+    """One block per (airframe, excitation): rows are 'h0 = .. m, GE ..', cells 'r (RMSE unit)'.
+    r is '-' where a channel stays constant (zero-input flight from trim)."""
+    blocks = []
+    keys = dict.fromkeys((r.airframe, r.case.excitation) for r in results)
+    for airframe, excitation in keys:
+        rows = [r for r in results if (r.airframe, r.case.excitation) == (airframe, excitation)]
+        width = max(len(_condition(r)) for r in rows) + 2
+        head = "Condition".ljust(width) + "".join(TITLE.get(c, c).ljust(27) for c in channels)
+        lines = [f"{airframe}: {excitation}, Pearson r (RMSE) falcon-rl vs JSBSim, "
+                 f"{rows[0].falcon.time[-1]:g} s", head, "-" * len(head.rstrip())]
+        for r in rows:
+            cells = "".join(_cell(r.metrics[c], CHANNELS[c]).ljust(27) for c in channels)
+            flag = f"  [min altitude {r.min_altitude:.2f} m: below ground]" if r.min_altitude <= 0 else ""
+            lines.append(_condition(r).ljust(width) + cells.rstrip() + flag)
+        blocks.append("\n".join(lines))
+    return "\n\n".join(blocks)
+
+
+def _condition(r: CaseResult) -> str:
+    return f"h0 = {r.case.height:g} m, {GE_LABEL[r.case.ground_effect]}"
+
+
+def plot_overlays(results: Sequence[CaseResult], directory: str | Path) -> list[Path]:
+    """One PNG per (airframe, excitation, height): altitude, pitch rate, airspeed and alpha of
+    both simulators (falcon-rl solid, JSBSim dashed), one colour per ground-effect setting."""
+    out = []
+    groups = dict.fromkeys((r.airframe, r.case.excitation, r.case.height) for r in results)
+    for airframe, excitation, height in groups:
+        rows = [r for r in results if (r.airframe, r.case.excitation, r.case.height) ==
+                (airframe, excitation, height)]
+        fig, axes = plt.subplots(2, 2, figsize=(10, 6.4), dpi=110, sharex=True)
+        for i, r in enumerate(rows):
+            for ax, (name, scale, label) in zip(axes.flat, PLOTTED, strict=True):
+                ax.plot(r.falcon.time, r.falcon.channels[name] * scale, color=f"C{i}", lw=1.4,
+                        label=f"falcon-rl, {GE_LABEL[r.case.ground_effect]}")
+                ax.plot(r.jsbsim.time, r.jsbsim.channels[name] * scale, color=f"C{i}", lw=1.2, ls="--",
+                        label=f"JSBSim, {GE_LABEL[r.case.ground_effect]}")
+                ax.set_ylabel(label)
+                ax.grid(True, alpha=0.3)
+        for ax in axes[1]:
+            ax.set_xlabel("time (s)")
+        axes[0, 0].legend(fontsize=7)
+        fig.suptitle(f"{airframe}: {excitation} from trim at h0 = {height:g} m")
+        fig.tight_layout()
+        path = Path(directory) / f"{airframe}_{excitation}_h{height:g}m.png"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fig.savefig(path)
+        plt.close(fig)
+        out.append(path)
+    return out
