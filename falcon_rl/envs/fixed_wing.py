@@ -122,7 +122,9 @@ class FixedWingEnv(EnvBase):
 
     # ------------------------------------------------------------------ EnvBase API
     def _set_seed(self, seed: int | None) -> None:
-        seed = int(torch.seed() if seed is None else seed) % (2**63)
+        if seed is None:
+            seed = int(torch.randint(0, 2**62, (1,)).item())
+        seed = int(seed) % (2**62)
         self.generator.manual_seed(seed)
         sim_generator = getattr(self.sim, "generator", None)
         if isinstance(sim_generator, torch.Generator):

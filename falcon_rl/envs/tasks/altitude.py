@@ -96,6 +96,7 @@ class AltitudeTask(Task):
         self.default_climb_rate = float(config.climb_rate or self.airframe.envelope.climb_rate_limit)
         self.climb_rate = torch.full((n,), self.default_climb_rate, **kw)
         self.target = torch.zeros(n, **kw)
+        self.target_table = torch.tensor(config.target_altitudes, **kw)
         self.initial_altitude = torch.zeros(n, **kw)
         self.segment_start = torch.zeros(n, **kw)  # altitude the current ramp starts from
         self.segment_time = torch.zeros(n, **kw)  # s since the current ramp started
@@ -154,7 +155,7 @@ class AltitudeTask(Task):
         inside = (height - self.target).abs() <= cfg.capture_band
         self.time_in_band.copy_(torch.where(inside, self.time_in_band + self.env_dt, 0.0))
         held = self.time_in_band >= cfg.hold_seconds
-        table = torch.tensor(cfg.target_altitudes, device=self.device, dtype=self.dtype)
+        table = self.target_table
         shift = torch.randint(1, max(len(table), 2), (self.num_envs,), generator=self.generator,
                               device=self.device)
         current = (self.target[:, None] - table).abs().argmin(-1)

@@ -84,6 +84,8 @@ class AttitudeTask(Task):
             self.table = maneuver_stream(config.maneuver, self.airframe, self.env_dt).to(**kw)
         self.commanded = torch.zeros(n, 3, **kw)
         self.errors = torch.zeros(n, 3, **kw)  # (e_phi, e_hdot, e_Va)
+        self.error_scale = torch.tensor(
+            [30.0 * DEG, self.climb_scale, config.airspeed_scale * env.cruise_speed], **kw)
 
     @property
     def episode_seconds(self) -> float:
@@ -132,14 +134,12 @@ class AttitudeTask(Task):
         self._update_errors(state)
 
     def observe(self, state: TensorDictBase) -> torch.Tensor:
-        cruise = self.airframe.envelope.cruise_speed
-        scale = torch.tensor([30.0 * DEG, self.climb_scale, self.config.airspeed_scale * cruise],
-                             device=self.device, dtype=self.dtype)
         rates = state["angular_rate_body"] / 2.0
         euler = state["euler"][:, :2] / (math.pi / 4)
         air = torch.stack([state["alpha"], state["beta"]], dim=-1) / (20.0 * DEG)
         v_z = state["velocity_ned"][:, 2:3] / self.climb_scale
-        obs = torch.cat([self.errors / scale, euler, rates, air, v_z, self.previous_action], dim=-1)
+        obs = torch.cat([self.errors / self.error_scale, euler, rates, air, v_z, self.previous_action],
+                        dim=-1)
         return obs.clamp(-self.observation_clip, self.observation_clip)
 
     def reward(self, state: TensorDictBase, action: torch.Tensor) -> torch.Tensor:
