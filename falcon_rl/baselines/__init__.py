@@ -1,0 +1,1 @@
+"""Classical baselines (LQR/LQRI, MPPI) as TensorDict policies over the env specs."""
