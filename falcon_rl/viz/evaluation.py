@@ -8,10 +8,10 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import torch  # noqa: E402
+import matplotlib.pyplot as plt
+import torch
 
-from ..evaluation.protocols import ProtocolResult  # noqa: E402
+from ..evaluation.protocols import ProtocolResult
 
 
 def plot_altitude(result: ProtocolResult, path: Path, shown: int = 10) -> Path:

@@ -8,9 +8,9 @@ import matplotlib
 import matplotlib.ticker
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib.pyplot as plt
 
-from ..evaluation.ground_effect_table import GroundEffectRow  # noqa: E402
+from ..evaluation.ground_effect_table import GroundEffectRow
 
 
 def plot_ground_effect(tables: dict[str, list[GroundEffectRow]], path: str | Path) -> Path:
