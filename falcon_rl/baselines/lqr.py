@@ -23,8 +23,8 @@ from tensordict import TensorDictBase
 from tensordict.nn import TensorDictModuleBase
 
 from ..airframe import Airframe
-from ..physics.trim import TrimError
-from .linear_models import FULL_STATES, LONGITUDINAL_STATES, linear_model
+from ..physics.trim import TrimError, trim_level
+from .linear_models import FULL_STATES, LONGITUDINAL_STATES, climb_rate_row, linear_model_at
 from .lqr_design import design_lqri
 
 G0 = 9.80665
@@ -88,39 +88,41 @@ def _weights(grid: torch.Tensor, value: torch.Tensor) -> tuple[torch.Tensor, tor
 
 def _grid(airframe: Airframe, heights: list[float], speeds: list[float], full: bool,
           ground_effect: bool | str, dt: float) -> GainSchedule:
+    grid_h = torch.tensor(heights, dtype=torch.float64).repeat_interleave(len(speeds))
+    grid_v = torch.tensor(speeds, dtype=torch.float64).repeat(len(heights))
+    trims = trim_level(airframe, grid_v, grid_h, ground_effect=ground_effect)  # one batched solve
     Ks, xs, us, cs, radius = [], [], [], [], 0.0
-    for h in heights:
-        row_k, row_x, row_u, row_c = [], [], [], []
-        for v in speeds:
-            model = linear_model(airframe, v, h, full=full, ground_effect=ground_effect)
-            n = model.A.shape[0]
-            if full:
-                outputs = np.zeros((3, n))
-                outputs[0, FULL_STATES.index("phi")] = 1.0
-                outputs[1] = model.A[FULL_STATES.index("h")]
-                uvw = model.x_trim[:3]
-                outputs[2, :3] = uvw / np.linalg.norm(uvw)
-                gain = design_lqri(model, dt, outputs, ATTITUDE_STATE_MAX, ATTITUDE_INPUT_MAX,
-                                   ATTITUDE_INTEGRAL_MAX)
-            else:
-                outputs = np.zeros((1, n))
-                outputs[0, LONGITUDINAL_STATES.index("h")] = 1.0
-                gain = design_lqri(model, dt, outputs, ALTITUDE_STATE_MAX, ALTITUDE_INPUT_MAX,
-                                   ALTITUDE_INTEGRAL_MAX)
-            radius = max(radius, gain.spectral_radius)
-            row_k.append(gain.K)
-            row_x.append(model.x_trim)
-            row_u.append(model.u_trim)
-            row_c.append(outputs)
-        Ks.append(row_k)
-        xs.append(row_x)
-        us.append(row_u)
-        cs.append(row_c)
+    for i in range(grid_h.numel()):
+        model = linear_model_at(airframe, trims, i, full=full, ground_effect=ground_effect)
+        n = model.A.shape[0]
+        if full:
+            outputs = np.zeros((3, n))
+            outputs[0, FULL_STATES.index("phi")] = 1.0
+            outputs[1] = climb_rate_row(model)
+            uvw = model.x_trim[:3]
+            outputs[2, :3] = uvw / np.linalg.norm(uvw)
+            gain = design_lqri(model, dt, outputs, ATTITUDE_STATE_MAX, ATTITUDE_INPUT_MAX,
+                               ATTITUDE_INTEGRAL_MAX)
+        else:
+            outputs = np.zeros((1, n))
+            outputs[0, LONGITUDINAL_STATES.index("h")] = 1.0
+            gain = design_lqri(model, dt, outputs, ALTITUDE_STATE_MAX, ALTITUDE_INPUT_MAX,
+                               ALTITUDE_INTEGRAL_MAX)
+        radius = max(radius, gain.spectral_radius)
+        Ks.append(gain.K)
+        xs.append(model.x_trim)
+        us.append(model.u_trim)
+        cs.append(outputs)
+    shape = (len(heights), len(speeds))
 
     def t(a) -> torch.Tensor:
         return torch.as_tensor(np.asarray(a), dtype=torch.float64)
 
-    return GainSchedule(t(heights), t(speeds), t(Ks), t(xs), t(us), t(cs), radius)
+    def grid(rows: list) -> torch.Tensor:
+        table = t(rows)
+        return table.reshape(*shape, *table.shape[1:])
+
+    return GainSchedule(t(heights), t(speeds), grid(Ks), grid(xs), grid(us), grid(cs), radius)
 
 
 def _trimmable_speeds(airframe: Airframe, fractions: tuple[float, ...], height: float) -> list[float]:
@@ -128,7 +130,7 @@ def _trimmable_speeds(airframe: Airframe, fractions: tuple[float, ...], height: 
     for f in fractions:
         v = f * airframe.envelope.cruise_speed
         try:
-            linear_model(airframe, v, height)
+            trim_level(airframe, v, height)
         except TrimError:
             continue
         speeds.append(v)
@@ -239,7 +241,7 @@ class AttitudeLQR(_LQRPolicy):
         vel, omega = td["state", "velocity_body"], td["state", "angular_rate_body"]
         euler, height, airspeed = td["state", "euler"], td["state", "height"], td["state", "airspeed"]
         n = height.shape[0]
-        x = torch.cat([vel, omega, euler[:, :2], height[:, None], td["state", "surface_position"],
+        x = torch.cat([vel, omega, euler[:, :2], td["state", "surface_position"],
                        _rate(td, n, height), td["state", "throttle"][:, :1]], dim=-1)
         K, x_trim, u_trim, _ = self.schedule.at(height, airspeed)
         bank, climb, speed = (td["task", k] for k in ("bank_command", "climb_rate_command",
@@ -253,7 +255,6 @@ class AttitudeLQR(_LQRPolicy):
         x_ref[:, 5] = yaw_rate * torch.cos(bank) * torch.cos(theta)
         x_ref[:, 6] = bank
         x_ref[:, 7] = theta
-        x_ref[:, 8] = height  # altitude is not regulated; the climb-rate integrator holds it
         climb_rate = -td["state", "velocity_ned"][:, 2]
         error = torch.stack([euler[:, 0] - bank, climb_rate - climb, airspeed - speed], dim=-1)
         z = self._integrate(error, td["state", "time"])
