@@ -20,8 +20,9 @@ from . import state as S
 from .dynamics import AirInputs, derivative, evaluate, ground_contact, project
 from .integrators import INTEGRATORS
 from .params import build_params
-from .rotations import body_to_ned, euler_to_quaternion, quaternion_to_euler
+from .rotations import body_to_ned, euler_to_quaternion, ned_to_body, quaternion_to_euler
 from .trim import trim_level
+from .wind import Turbulence, TurbulenceConfig, dryden_step, turbulence_config
 
 BACKENDS = ("torch", "warp", "scipy")
 DEFAULT_HEIGHT = 100.0
@@ -38,9 +39,11 @@ class Simulator:
         device, dtype: where the state lives (scipy forces cpu/float64).
         dt: step length, s. integrator: "rk4" or "euler" (ignored by scipy).
         ground_effect: True / "induced", "paper" or False / "off" (per-env, see params).
-        wind: steady wind in NED, [3] or [N, 3] m/s, or None.
-        turbulence: reserved for the Dryden model; must be None for now.
-        seed: seed of this simulator's generator.
+        wind: steady wind in NED, [3] or [N, 3] m/s, or None (per-env, in ``wind_ned``).
+        turbulence: None (off), a MIL severity name ("very_light", "light", "moderate", "severe")
+            or a :class:`~falcon_rl.physics.wind.TurbulenceConfig`; the Dryden state is ``turbulence``
+            (per-env W20 in ``turbulence.w20``), the gusts are published in ``state``.
+        seed: seed of this simulator's generator (and of the Warp turbulence streams).
         check_inputs: raise on malformed or non-finite commands (costs a host sync on CUDA).
     """
 
@@ -54,7 +57,7 @@ class Simulator:
         integrator: str = "rk4",
         ground_effect: bool | str = True,
         wind: torch.Tensor | list[float] | None = None,
-        turbulence: object | None = None,
+        turbulence: str | TurbulenceConfig | None = None,
         seed: int = 0,
         dtype: torch.dtype = torch.float32,
         check_inputs: bool = True,
@@ -69,8 +72,6 @@ class Simulator:
             raise ValueError(f"num_envs must be >= 1, got {num_envs}")
         if not dt > 0:
             raise ValueError(f"dt must be > 0, got {dt}")
-        if turbulence is not None:
-            raise NotImplementedError("Dryden turbulence is not implemented yet; pass None")
         if backend == "scipy":
             if num_envs != 1:
                 raise ValueError("the scipy reference backend runs exactly one env")
@@ -94,6 +95,9 @@ class Simulator:
         self.gust_velocity_body = torch.zeros(num_envs, 3, device=self.device, dtype=dtype)
         self.gust_rate_body = torch.zeros(num_envs, 3, device=self.device, dtype=dtype)
         self.time = torch.zeros(num_envs, device=self.device, dtype=dtype)
+        config = turbulence_config(turbulence)
+        self.turbulence: Turbulence | None = (
+            None if config is None else Turbulence(config, num_envs, self.device, dtype, seed))
         self._default: torch.Tensor | None = None
         self._default_command: torch.Tensor | None = None
         self._engine = _make_engine(self)
@@ -138,11 +142,17 @@ class Simulator:
             self.x.copy_(new_x)
             self.command.copy_(new_cmd)
             self.time.zero_()
+            self.gust_velocity_body.zero_()
+            self.gust_rate_body.zero_()
         else:
             mask = mask.to(self.device).reshape(n)
             self.x[mask] = new_x[mask]
             self.command[mask] = new_cmd[mask]
             self.time[mask] = 0.0
+            self.gust_velocity_body.masked_fill_(mask[:, None], 0.0)
+            self.gust_rate_body.masked_fill_(mask[:, None], 0.0)
+        if self.turbulence is not None:
+            self.turbulence.reset(mask)
         self._engine.after_reset(mask)
         return self.state
 
@@ -198,8 +208,32 @@ class Simulator:
                 bad = (~torch.isfinite(commands)).any(-1).nonzero().flatten().tolist()
                 raise ValueError(f"commands contain NaN or Inf for envs {bad[:10]}")
         self.command.copy_(commands.clamp(-1.0, 1.0))
+        if self.turbulence is not None and self.backend != "warp":  # warp: inside the step kernel
+            self.advance_turbulence()
         self._engine.step()
         self.time += self.dt
+
+    def advance_turbulence(self) -> None:
+        """Advance the Dryden filters once (torch) at the current height and mean-air airspeed and
+        write the gusts that act over the coming step into ``gust_velocity_body`` / ``gust_rate_body``."""
+        turb = self.turbulence
+        assert turb is not None
+        if not turb.external_noise:
+            turb.noise.normal_(generator=self.generator)
+        x = self.x
+        v_air = x[:, S.VELOCITY] - ned_to_body(x[:, S.QUATERNION], self.wind_ned)
+        airspeed = torch.linalg.vector_norm(v_air, dim=-1)
+        filt, gust_v, gust_w = dryden_step(turb.filter, turb.noise, self.gust_velocity_body, turb.w20,
+                                           -x[:, 2], airspeed, self.params.span, self.dt)
+        turb.filter.copy_(filt)
+        self.gust_velocity_body.copy_(gust_v)
+        self.gust_rate_body.copy_(gust_w)
+
+    def reseed(self, seed: int) -> None:
+        """Reseed the generator and the Warp turbulence streams."""
+        self.generator.manual_seed(int(seed))
+        if self.turbulence is not None:
+            self.turbulence.reseed(int(seed))
 
     def advance_torch(self, x: torch.Tensor, command: torch.Tensor) -> torch.Tensor:
         """One torch integration step of x [N, S] (not in place); used by engines and MPPI."""

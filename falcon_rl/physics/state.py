@@ -9,7 +9,7 @@
     [19:19+M] throttle              [0, 1] per motor (first-order lag)
 
 Turbulence filter states are discrete (advanced once per step, not integrated) and live
-beside this vector in the Simulator.
+beside this vector in the Simulator: ``Simulator.turbulence.filter`` [N, 8] (see ``wind.py``).
 """
 
 from __future__ import annotations

@@ -8,6 +8,8 @@ randomisation through ``ModelParams.assign``) are seen by the next launch. Repla
 single parameter tensor re-binds at the next reset (or call :meth:`WarpEngine.rebind`), which keeps
 that 30-tensor check off the per-step path.
 On CUDA the launch is queued on torch's current stream, so no synchronisation is needed.
+With turbulence on, the kernel also advances the Dryden filters (``sim.turbulence``); the step
+counter of its noise streams is a device tensor bumped by torch before each launch.
 """
 
 from __future__ import annotations
@@ -57,8 +59,29 @@ class WarpEngine:
 
     def _binding_key(self) -> tuple[Any, ...]:
         sim = self.sim
+        turb = sim.turbulence
+        turb_key = (None if turb is None else
+                    (id(turb), turb.filter.data_ptr(), turb.w20.data_ptr(), turb.noise.data_ptr(),
+                     turb.external_noise))
         return (id(sim.params), sim.x.data_ptr(), sim.command.data_ptr(), sim.wind_ned.data_ptr(),
-                sim.gust_velocity_body.data_ptr(), sim.gust_rate_body.data_ptr(), sim.dt, sim.integrator)
+                sim.gust_velocity_body.data_ptr(), sim.gust_rate_body.data_ptr(), sim.dt, sim.integrator,
+                turb_key)
+
+    def _turbulence_inputs(self) -> list[Any]:
+        """Views of the Dryden state and the mode code (placeholders and mode 0 when off)."""
+        wp, sim, k = self._wp, self.sim, self._kernels
+        turb = sim.turbulence
+        if turb is None:
+            dev = sim.device
+            self._turb_placeholders = (torch.zeros(1, 8, device=dev), torch.zeros(1, device=dev),
+                                       torch.zeros(1, 6, device=dev),
+                                       torch.zeros(2, dtype=torch.int32, device=dev))
+            tensors, mode = self._turb_placeholders, k.TURBULENCE_OFF
+        else:
+            self._turb_object = turb  # held so that its id cannot be reused
+            tensors = (turb.filter, turb.w20, turb.noise, turb.rng)
+            mode = k.TURBULENCE_EXTERNAL if turb.external_noise else k.TURBULENCE_RANDOM
+        return [*(wp.from_torch(t) for t in tensors), mode]
 
     def rebind(self) -> None:
         """Bind fresh views of the simulator's tensors and record the launch again."""
@@ -78,6 +101,7 @@ class WarpEngine:
             self._params,
             sim.dt,
             self._kernels.INTEGRATOR_CODES[sim.integrator],
+            *self._turbulence_inputs(),
         ]
         self._launch = wp.launch(self._kernels.step_kernel, dim=sim.num_envs, inputs=inputs,
                                  device=self.device, record_cmd=True)
@@ -87,6 +111,9 @@ class WarpEngine:
         """Advance ``sim.x`` by one dt in place (one kernel launch)."""
         if self._binding_key() != self._key:
             self.rebind()
+        turb = self.sim.turbulence
+        if turb is not None and not turb.external_noise:
+            turb.rng[1] += 1
         if self._is_cuda:
             self._launch.launch(stream=self._wp.stream_from_torch(self.sim.device))
         else:

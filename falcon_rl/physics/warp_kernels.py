@@ -6,6 +6,8 @@ inside the kernel one env's row is a padded :data:`StateVec`. Importing this mod
 compiles nothing: Warp builds the module on the first launch and caches the binary on disk.
 
 There is no reset kernel: resets are masked writes that the Simulator makes to the same memory.
+The Dryden turbulence update (``wind.dryden_step_wp``) runs at the start of the step kernel, once per
+step, so the gusts it writes act over the whole step.
 """
 
 from __future__ import annotations
@@ -14,9 +16,13 @@ import warp as wp
 
 from .dynamics import derivative_wp, project_wp
 from .params import WarpParams
-from .state import StateVec
+from .rotations import rotation_matrix_wp
+from .state import QUATERNION_START, VELOCITY_START, StateVec
+from .wind import NUM_FILTER_STATES, NUM_NOISE, Vec6, Vec8, dryden_step_wp
 
 INTEGRATOR_CODES = {"euler": 0, "rk4": 1}
+#: Turbulence modes of the step kernel: off, noise from the Warp streams, noise read from an array.
+TURBULENCE_OFF, TURBULENCE_RANDOM, TURBULENCE_EXTERNAL = 0, 1, 2
 
 
 @wp.func
@@ -26,6 +32,37 @@ def load_state(x: wp.array2d(dtype=wp.float32), i: int, size: int) -> StateVec:
     for k in range(size):
         s[k] = x[i, k]
     return s
+
+
+@wp.func
+def advance_turbulence(s: StateVec, wind: wp.vec3, i: int, gust_velocity_body: wp.array(dtype=wp.vec3),
+                       gust_rate_body: wp.array(dtype=wp.vec3), turb_filter: wp.array2d(dtype=wp.float32),
+                       turb_w20: wp.array(dtype=wp.float32), turb_noise: wp.array2d(dtype=wp.float32),
+                       turb_rng: wp.array(dtype=wp.int32), turb_mode: int, span: float, dt: float):
+    """One Dryden step of env ``i`` at its height and mean-air airspeed (twin of
+    ``Simulator.advance_turbulence``): updates the filter row and the gust arrays in place."""
+    q = wp.vec4(s[QUATERNION_START], s[QUATERNION_START + 1], s[QUATERNION_START + 2],
+                s[QUATERNION_START + 3])
+    vel = wp.vec3(s[VELOCITY_START], s[VELOCITY_START + 1], s[VELOCITY_START + 2])
+    airspeed = wp.length(vel - wp.transpose(rotation_matrix_wp(q)) * wind)
+    noise = Vec6()
+    if turb_mode == TURBULENCE_EXTERNAL:
+        for k in range(NUM_NOISE):
+            noise[k] = turb_noise[i, k]
+    else:
+        stream = wp.rand_init(turb_rng[0], turb_rng[1])
+        rng = wp.rand_init(wp.randi(stream), i)
+        for k in range(NUM_NOISE):
+            noise[k] = wp.randn(rng)
+            turb_noise[i, k] = noise[k]
+    filt = Vec8()
+    for k in range(NUM_FILTER_STATES):
+        filt[k] = turb_filter[i, k]
+    out = dryden_step_wp(filt, noise, gust_velocity_body[i], turb_w20[i], -s[2], airspeed, span, dt)
+    for k in range(NUM_FILTER_STATES):
+        turb_filter[i, k] = out.filt[k]
+    gust_velocity_body[i] = out.gust_velocity
+    gust_rate_body[i] = out.gust_rate
 
 
 @wp.kernel
@@ -38,17 +75,27 @@ def step_kernel(
     p: WarpParams,
     dt: float,
     integrator: int,
+    turb_filter: wp.array2d(dtype=wp.float32),
+    turb_w20: wp.array(dtype=wp.float32),
+    turb_noise: wp.array2d(dtype=wp.float32),
+    turb_rng: wp.array(dtype=wp.int32),
+    turb_mode: int,
 ):
     """x[i] <- project(integrate(x[i], dt)) for env i = tid, command held over the step.
 
     x: [N, S] state (in place). command: [N] normalised commands. wind_ned, gust_*: [N] air motion.
     integrator: 0 Euler, 1 classic RK4 (same stage arithmetic as ``integrators.rk4_step``).
+    turb_*: Dryden state (filter [N, 8], W20 [N], noise [N, 6], rng (seed, step) [2]); with
+    turb_mode != 0 the gusts are advanced first (noise from the streams or read from turb_noise).
     """
     i = wp.tid()
     size = x.shape[1]
     s = load_state(x, i, size)
     u = command[i]
     wind = wind_ned[i]
+    if turb_mode != TURBULENCE_OFF:
+        advance_turbulence(s, wind, i, gust_velocity_body, gust_rate_body, turb_filter, turb_w20, turb_noise,
+                           turb_rng, turb_mode, p.span[i], dt)
     gv = gust_velocity_body[i]
     gw = gust_rate_body[i]
     k1 = derivative_wp(s, u, wind, gv, gw, p, i)
