@@ -4,18 +4,29 @@ from __future__ import annotations
 
 from dataclasses import fields, replace
 
+from torchrl.envs import Compose, EnvBase, TransformedEnv
+
+from ..transforms.presets import robustness_transforms
 from .fixed_wing import STATE_KEYS, FixedWingEnv, FixedWingEnvConfig
 from .gym import GYM_IDS, CoreAircraftEnv, register_gym_envs
 from .tasks import TASKS, Task, TaskConfig
 
 
 def make_env(task: str, airframe: str = "navion", num_envs: int = 1, backend: str = "torch",
-             device: str = "cpu", seed: int = 0, **options) -> FixedWingEnv:
+             device: str = "cpu", seed: int = 0, *, sensors: object = None, obs_delay_ms: object = None,
+             action_delay_ms: object = None, randomize: object = None, **options) -> EnvBase:
     """Build a :class:`FixedWingEnv` for ``task`` (one of ``TASKS``) on ``airframe``.
 
     ``options`` name fields of :class:`FixedWingEnvConfig` (dt, decimation, integrator,
-    ground_effect, wind) or of the task's config dataclass (episode_seconds, target_altitudes,
-    maneuver, reward weights, ...); an unknown name raises ``TypeError``.
+    ground_effect, wind, turbulence) or of the task's config dataclass (episode_seconds,
+    target_altitudes, maneuver, reward weights, ...); an unknown name raises ``TypeError``.
+
+    Robustness (all off by default; see :mod:`falcon_rl.transforms`): ``sensors`` (a grid name
+    "nominal" | "mild" | "medium" | "severe" or a SensorConfig), ``obs_delay_ms`` and
+    ``action_delay_ms`` (a grid name, milliseconds, or a (low, high) range drawn per episode),
+    ``randomize`` (True or a RandomizationConfig), ``turbulence`` (MIL or grid name, sigma_u/V_a,
+    or a TurbulenceConfig) and ``wind`` (NED, m/s). With any transform on, the result is a
+    ``TransformedEnv`` over the FixedWingEnv (``env.base_env``).
     """
     if task not in TASKS:
         raise ValueError(f"unknown task {task!r}; choose one of {sorted(TASKS)}")
@@ -32,7 +43,9 @@ def make_env(task: str, airframe: str = "navion", num_envs: int = 1, backend: st
     env_options = {k: v for k, v in options.items() if k in env_fields}
     config = FixedWingEnvConfig(task=task, airframe=airframe, num_envs=num_envs, backend=backend,
                                 device=str(device), seed=seed, task_config=task_config, **env_options)
-    return FixedWingEnv(config)
+    env = FixedWingEnv(config)
+    transforms = robustness_transforms(sensors, obs_delay_ms, action_delay_ms, randomize, seed=seed)
+    return TransformedEnv(env, Compose(*transforms)) if transforms else env
 
 
 register_gym_envs()

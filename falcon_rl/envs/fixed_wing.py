@@ -29,6 +29,8 @@ from torchrl.envs import EnvBase
 
 from ..airframe import Airframe, load_airframe
 from ..physics import Simulator
+from ..physics.wind import TurbulenceConfig
+from ..transforms.presets import nominal_height, resolve_turbulence
 from .tasks import TASKS, TaskConfig
 
 #: Fields of ``Simulator.state`` published under ("state", ...).
@@ -61,6 +63,10 @@ class FixedWingEnvConfig:
     ground_effect: bool | str = True
     #: Steady wind in NED, m/s.
     wind: tuple[float, float, float] | None = None
+    #: Dryden turbulence: None (off), a MIL severity ("very_light", "light", "moderate", "severe"),
+    #: a robustness-grid name ("mild", "medium"), a float sigma_u / V_a at the task's trim airspeed
+    #: and nominal height, or a TurbulenceConfig (see ``falcon_rl.transforms.presets``).
+    turbulence: str | float | TurbulenceConfig | None = None
     #: The task's config; None takes the task's defaults.
     task_config: TaskConfig | None = field(default=None)
 
@@ -80,14 +86,17 @@ class FixedWingEnv(EnvBase):
         super().__init__(batch_size=torch.Size([config.num_envs]), device=device)
         self.config = config
         self.airframe = airframe or load_airframe(config.airframe)
+        task_cls, config_cls = TASKS[config.task]
+        task_config = config.task_config if config.task_config is not None else config_cls()
+        trim_airspeed = task_config.trim_airspeed or self.airframe.envelope.cruise_speed
+        turbulence = resolve_turbulence(config.turbulence, trim_airspeed, nominal_height(task_config))
         self.sim = Simulator(self.airframe, num_envs=config.num_envs, backend=config.backend,
                              device=device, dt=config.dt, integrator=config.integrator,
                              ground_effect=config.ground_effect,
-                             wind=None if config.wind is None else list(config.wind), seed=config.seed)
+                             wind=None if config.wind is None else list(config.wind),
+                             turbulence=turbulence, seed=config.seed)
         self.generator = torch.Generator(device=device)
         self.env_dt = config.dt * config.decimation
-        task_cls, config_cls = TASKS[config.task]
-        task_config = config.task_config if config.task_config is not None else config_cls()
         self.task = task_cls(task_config, self.sim, self.generator, self.env_dt, config.ground_effect)
         self.max_episode_steps = max(1, round(self.task.episode_seconds / self.env_dt))
         self.step_count = torch.zeros(config.num_envs, dtype=torch.long, device=device)
@@ -126,9 +135,7 @@ class FixedWingEnv(EnvBase):
             seed = int(torch.randint(0, 2**62, (1,)).item())
         seed = int(seed) % (2**62)
         self.generator.manual_seed(seed)
-        sim_generator = getattr(self.sim, "generator", None)
-        if isinstance(sim_generator, torch.Generator):
-            sim_generator.manual_seed(seed + 1)
+        self.sim.reseed(seed + 1)
 
     def _reset(self, tensordict: TensorDictBase | None = None, **kwargs) -> TensorDictBase:
         n = self.config.num_envs
@@ -144,6 +151,11 @@ class FixedWingEnv(EnvBase):
         self.task.after_reset(state, mask)
         no = torch.zeros(n, 1, dtype=torch.bool, device=self.device)
         return self._output(self.task.observe(state), state, no, no, reward=None)
+
+    def observe(self, state: TensorDictBase) -> torch.Tensor:
+        """[N, D] observation the task makes of ``state`` (e.g. a measured one) with its current
+        buffers, without side effects (the sensor transform's hook)."""
+        return self.task.observe(state)
 
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
         action = tensordict.get("action")

@@ -1,0 +1,30 @@
+"""TorchRL transforms for robustness studies: sensors, observation/action delay, domain randomisation.
+
+    env = make_env("attitude", "navion", num_envs=256, sensors="mild", obs_delay_ms=20,
+                   action_delay_ms=(20, 60), randomize=True, turbulence="moderate")
+
+or compose them yourself on a :class:`~falcon_rl.envs.FixedWingEnv`:
+
+    env = TransformedEnv(base, Compose(DomainRandomization(), SensorTransform(SensorConfig(...)),
+                                       ObservationDelay(50.0), ActionDelay(60.0)))
+
+The true state stays under ("state", ...) (metrics, rewards); what the policy perceives is
+"observation" and ("measured", ...). Every transform keeps per-env buffers and resets only the rows
+of a partial reset. Presets of the paper's robustness grid are in :mod:`.presets`.
+"""
+
+from .delay import ActionDelay, ObservationDelay
+from .presets import (
+    GRID,
+    delay_preset,
+    grid_turbulence,
+    resolve_turbulence,
+    robustness_transforms,
+    sensor_preset,
+)
+from .randomize import DomainRandomization, RandomizationConfig
+from .sensors import SENSOR_FIELDS, SensorChannel, SensorConfig, SensorTransform
+
+__all__ = ["GRID", "SENSOR_FIELDS", "ActionDelay", "DomainRandomization", "ObservationDelay",
+           "RandomizationConfig", "SensorChannel", "SensorConfig", "SensorTransform", "delay_preset",
+           "grid_turbulence", "resolve_turbulence", "robustness_transforms", "sensor_preset"]

@@ -1,0 +1,138 @@
+"""Observation and action (command) latency as TorchRL transforms, in milliseconds.
+
+A delay is a whole number of env steps, ``round(ms / env_dt)``, fixed or drawn per env and per
+episode from a (low, high) range at each reset. Each env keeps its own ring buffer, refilled on its
+reset (partial resets touch only the reset rows).
+
+- :class:`ObservationDelay`: after step t the policy sees the observation of step t - k (and the
+  policy's view of the state, ("measured", ...), created from ("state", ...) when no sensor
+  transform made it). The true ("state", ...) is never delayed, so metrics stay on the truth.
+  Until k steps have passed since a reset, the reset observation is repeated.
+- :class:`ActionDelay`: the command the policy emits at step t reaches the simulator at step t + k;
+  until then the task's trim command is applied. The rollout keeps the policy's own "action"; the
+  command that acted is published as "applied_action".
+"""
+
+from __future__ import annotations
+
+import torch
+from tensordict import TensorDictBase
+from torchrl.data import Composite
+from torchrl.envs import Transform
+
+from ._buffers import DelayLine, delay_range, draw_delays, reset_mask
+
+
+def _base_env(transform: Transform):
+    parent = transform.parent
+    if parent is None:
+        raise RuntimeError(f"{type(transform).__name__} must be appended to a TransformedEnv")
+    return parent.base_env
+
+
+class _DelayTransform(Transform):
+    """Delay bookkeeping shared by the two transforms (lazy buffers sized on first reset)."""
+
+    def __init__(self, delay_ms: float | tuple[float, float], seed: int = 0):
+        super().__init__(in_keys=[], out_keys=[])
+        self.delay_ms = delay_ms
+        self.generator = torch.Generator().manual_seed(int(seed))
+        self._lines: dict = {}
+        self._delays: torch.Tensor | None = None
+
+    def _steps_range(self) -> tuple[int, int]:
+        return delay_range(self.delay_ms, _base_env(self).env_dt)
+
+    def _draw(self, mask: torch.Tensor, num_envs: int, device: torch.device) -> torch.Tensor:
+        """Per-env delays [N] long, redrawn on the rows in ``mask``."""
+        low, high = self._steps_range()
+        fresh = draw_delays(low, high, num_envs, self.generator, torch.device("cpu")).to(device)
+        if self._delays is None:
+            self._delays = fresh
+        else:
+            self._delays = torch.where(mask, fresh, self._delays)
+        for line in self._lines.values():
+            line.delay = self._delays
+        return self._delays
+
+    def _line(self, key, value: torch.Tensor) -> DelayLine:
+        line = self._lines.get(key)
+        if line is None:
+            line = DelayLine(value.shape[0], self._steps_range()[1], tuple(value.shape[1:]), value.dtype,
+                             value.device)
+            if self._delays is not None:
+                line.delay = self._delays
+            self._lines[key] = line
+        return line
+
+    @property
+    def delays(self) -> torch.Tensor | None:
+        """Current per-env delays in env steps [N] (None before the first reset)."""
+        return self._delays
+
+
+class ObservationDelay(_DelayTransform):
+    """Delay "observation" and ("measured", ...) by ``delay_ms`` (fixed or a (low, high) range)."""
+
+    def transform_observation_spec(self, observation_spec: Composite) -> Composite:
+        if "measured" not in observation_spec.keys():  # noqa: SIM118 (a spec, not a dict)
+            observation_spec["measured"] = observation_spec["state"].clone()
+        return observation_spec
+
+    def _view(self, td: TensorDictBase) -> dict:
+        source = td.get("measured", None)
+        if source is None:
+            source = td.get("state")
+        view = {("measured", k): source.get(k) for k in source.keys()}  # noqa: SIM118
+        view["observation"] = td.get("observation")
+        return view
+
+    def _reset(self, tensordict: TensorDictBase, tensordict_reset: TensorDictBase) -> TensorDictBase:
+        n = tensordict_reset.batch_size[0]
+        mask = reset_mask(tensordict, n, tensordict_reset.device)
+        self._draw(mask, n, tensordict_reset.device)
+        for key, value in self._view(tensordict_reset).items():
+            line = self._line(key, value)
+            line.fill(mask, value)
+            tensordict_reset.set(key, line.last_output())
+        return tensordict_reset
+
+    def _call(self, next_tensordict: TensorDictBase) -> TensorDictBase:
+        for key, value in self._view(next_tensordict).items():
+            next_tensordict.set(key, self._line(key, value).push(value))
+        return next_tensordict
+
+
+class ActionDelay(_DelayTransform):
+    """Apply the policy's action ``delay_ms`` later (fixed or a (low, high) range per episode)."""
+
+    def transform_observation_spec(self, observation_spec: Composite) -> Composite:
+        observation_spec["applied_action"] = self.parent.full_action_spec["action"].clone()
+        return observation_spec
+
+    def _reset_env_preprocess(self, tensordict: TensorDictBase) -> TensorDictBase:
+        return tensordict  # a reset pushes nothing into the command path
+
+    def _trim_action(self, n: int) -> torch.Tensor:
+        task = _base_env(self).task
+        return task.trim.command[task.channels].expand(n, -1)
+
+    def _reset(self, tensordict: TensorDictBase, tensordict_reset: TensorDictBase) -> TensorDictBase:
+        n = tensordict_reset.batch_size[0]
+        mask = reset_mask(tensordict, n, tensordict_reset.device)
+        self._draw(mask, n, tensordict_reset.device)
+        trim = self._trim_action(n)
+        line = self._line("action", trim)
+        line.fill(mask, trim)
+        tensordict_reset.set("applied_action", line.last_output())
+        return tensordict_reset
+
+    def _inv_call(self, tensordict: TensorDictBase) -> TensorDictBase:
+        action = tensordict.get("action")
+        applied = self._line("action", action).push(action)
+        tensordict.set("action", applied)  # on the shallow copy the base env reads
+        return tensordict
+
+    def _step(self, tensordict: TensorDictBase, next_tensordict: TensorDictBase) -> TensorDictBase:
+        next_tensordict.set("applied_action", tensordict.get("action"))  # the delayed command
+        return next_tensordict
