@@ -22,6 +22,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
 import torch
 from tensordict import TensorDictBase
 from tensordict.nn import TensorDictModuleBase
@@ -35,20 +36,22 @@ from ..physics import state as S
 class MPPIConfig:
     """Planner settings. Times in s; noise in normalised command units."""
 
-    samples: int = 96
+    samples: int = 128
     horizon_seconds: float = 4.0
     plan_dt: float = 0.05
     replan_seconds: float = 0.1
     #: Temperature as a fraction of the batch's mean cost above the best.
-    temperature: float = 0.3
+    temperature: float = 0.2
     #: Sampling noise per command channel (elevator, aileron, rudder, throttle), normalised units.
     noise_sigma: tuple[float, float, float, float] = (0.05, 0.05, 0.05, 0.15)
-    altitude_scale: float = 1.0
-    climb_rate_scale: float = 0.5
+    altitude_scale: float = 0.5
+    climb_rate_scale: float = 0.3
     airspeed_scale: float = 1.0
     pitch_rate_scale: float = 0.5
     bank_scale: float = math.radians(3.0)
-    smoothness_scale: float = 0.1
+    smoothness_scale: float = 0.3
+    #: Spacing of the noise knots (the noise is linear between them), s.
+    noise_knot_seconds: float = 0.25
     penalty: float = 1e3
     seed: int = 0
 
@@ -70,8 +73,9 @@ class MPPI(TensorDictModuleBase):
         self.plan_hold = max(1, round(cfg.plan_dt / env.env_dt))
         self.shift = max(1, round(cfg.replan_seconds / cfg.plan_dt))
         backend = "warp" if env.config.backend == "warp" else "torch"
+        self.substeps = stable_substeps(env.sim.airframe, cfg.plan_dt)
         self.planner = Simulator(env.sim.airframe, self.n * self.k, backend=backend, device=env.device,
-                                 dt=cfg.plan_dt, ground_effect=env.config.ground_effect,
+                                 dt=cfg.plan_dt / self.substeps, ground_effect=env.config.ground_effect,
                                  dtype=env.sim.dtype, check_inputs=False)
         self.trim_command = task.trim.command.clone()  # [4]
         self.trim_airspeed = task.trim_airspeed
@@ -141,8 +145,7 @@ class MPPI(TensorDictModuleBase):
         a = len(self.channels)
         shifted = torch.cat([self.plan[:, self.shift:], self.plan[:, -1:].expand(n, min(self.shift, h), a)],
                             dim=1)[:, :h]
-        noise = self.sigma * torch.randn(n, k, h, a, generator=self.generator, device=self.plan.device,
-                                         dtype=self.plan.dtype)
+        noise = self._smooth_noise(n, k, h, a)
         noise[:, 0] = 0.0  # keep the warm-started plan itself among the candidates
         candidates = (shifted[:, None] + noise).clamp(-1.0, 1.0)  # [N, K, H, A]
         self.planner.x.copy_(self._initial_state(td).repeat_interleave(k, dim=0))
@@ -153,7 +156,8 @@ class MPPI(TensorDictModuleBase):
         previous = self.plan[:, :1].expand(n, k, a).reshape(n * k, a)
         for j in range(h):
             command[:, self.channels] = flat[:, j]
-            self.planner.step(command)
+            for _ in range(self.substeps):
+                self.planner.step(command)
             cost += self._step_cost(self.planner.x, ref, (j + 1) * cfg.plan_dt)
             cost += ((flat[:, j] - previous) ** 2).sum(-1) / cfg.smoothness_scale**2
             previous = flat[:, j]
@@ -164,6 +168,16 @@ class MPPI(TensorDictModuleBase):
         new_plan = (weights[:, :, None, None] * candidates).sum(dim=1)
         self.plan = torch.where(rows[:, None, None], new_plan, self.plan)
         self.planning_seconds.append(time.perf_counter() - t0)
+
+    def _smooth_noise(self, n: int, k: int, h: int, a: int) -> torch.Tensor:
+        """Gaussian noise [N, K, H, A] drawn on knots every ``noise_knot_seconds`` and interpolated
+        linearly: smooth perturbations, so the smoothness cost ranks samples by how they fly rather
+        than by how much white noise they carry."""
+        knots = max(2, round(h * self.config.plan_dt / self.config.noise_knot_seconds) + 1)
+        raw = torch.randn(n * k, a, knots, generator=self.generator, device=self.plan.device,
+                          dtype=self.plan.dtype)
+        dense = torch.nn.functional.interpolate(raw, size=h, mode="linear", align_corners=True)
+        return self.sigma * dense.reshape(n, k, a, h).transpose(2, 3)
 
     # ---------------------------------------------------------------- policy
     def forward(self, td: TensorDictBase) -> TensorDictBase:
@@ -180,6 +194,16 @@ class MPPI(TensorDictModuleBase):
         self.counter += 1
         td.set("action", action.clone())
         return td
+
+
+def stable_substeps(airframe, plan_dt: float, margin: float = 2.0) -> int:
+    """RK4 substeps per planning step that keep |lambda| dt below ``margin`` (RK4's real-axis
+    stability limit is 2.79) for the fastest mode of the linearised model at cruise."""
+    from .linear_models import linear_model
+
+    model = linear_model(airframe, airframe.envelope.cruise_speed, 100.0, full=True)
+    fastest = float(np.abs(np.linalg.eigvals(model.A)).max())
+    return max(1, math.ceil(plan_dt * fastest / margin))
 
 
 def make_mppi(env: FixedWingEnv, config: MPPIConfig | None = None) -> MPPI:
