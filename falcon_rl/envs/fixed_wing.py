@@ -36,7 +36,7 @@ from .tasks import TASKS, TaskConfig
 #: Fields of ``Simulator.state`` published under ("state", ...).
 STATE_KEYS: tuple[str, ...] = (
     "position_ned", "quaternion", "euler", "velocity_body", "velocity_ned", "angular_rate_body",
-    "airspeed", "alpha", "beta", "height", "surface_position", "throttle", "thrust", "time",
+    "airspeed", "alpha", "beta", "height", "surface_position", "surface_rate", "throttle", "thrust", "time",
     "ground_contact",
 )
 
