@@ -26,8 +26,10 @@ def test_airframes_json(capsys):
 
 
 def test_trim_json_navion_reference_condition(capsys, navion):
-    """Nelson's reference condition (sea level, 176 ft/s): C_L within 2% of W/(qS); alpha and
-    elevator near zero since the data are referred to that trim."""
+    """Nelson's reference condition (sea level, 176 ft/s): C_L within 2% of W/(qS). The derived
+    Navion is referred to its fuselage datum, not to Nelson's stability axes at this trim, so alpha
+    is the datum attitude in cruise (wing at +2 deg incidence: a small nose-down attitude) and the
+    elevator is a few degrees at most (stabilizer incidence set for cruise)."""
     code, doc, _ = run_json(capsys, "trim", "--airframe", "navion", "--airspeed", "53.64",
                             "--height", "30", "--no-ground-effect")
     assert code == 0
@@ -38,7 +40,7 @@ def test_trim_json_navion_reference_condition(capsys, navion):
     rho = float(isa_density(torch.tensor(30.0)))
     cl_weight = navion.weight / (0.5 * rho * 53.64**2 * navion.geometry.wing_area)
     assert doc["lift_coefficient"] == pytest.approx(cl_weight, rel=0.02)
-    assert abs(doc["alpha_deg"]) < 0.5 and abs(doc["elevator_deg"]) < 0.5
+    assert abs(doc["alpha_deg"]) < 3.0 and abs(doc["elevator_deg"]) < 5.0
     for key in ("alpha_deg", "elevator_deg", "throttle", "thrust_n", "drag_n", "lift_coefficient",
                 "drag_coefficient", "induced_drag_coefficient"):
         assert key in doc
@@ -66,7 +68,7 @@ def test_ge_table_json_and_plot(capsys, tmp_path, ranger):
     [
         (["trim", "--airframe", "nope"], "unknown airframe"),
         (["trim", "--airframe", "navion", "--airspeed", "-3"], "--airspeed must be > 0"),
-        (["trim", "--airframe", "navion", "--airspeed", "15"], "no trim for navion"),
+        (["trim", "--airframe", "navion", "--airspeed", "15"], "for navion at 15.00 m/s"),
         (["trim", "--airframe", "navion", "--airspeed", "abc"], "invalid float value"),
         (["ge-table"], "required: --airframe"),
         (["fly"], "invalid choice"),
