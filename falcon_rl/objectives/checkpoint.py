@@ -1,0 +1,101 @@
+"""Atomic, weights-only checkpoints.
+
+A checkpoint is one ``torch.save`` of plain containers and tensors (no pickled classes), so it loads
+with ``torch.load(path, weights_only=True)``:
+
+    {"format": 1, "algorithm": str, "config": dict, "counters": dict,
+     "modules": {name: state_dict}, "optimizers": {name: state_dict}, "norm": {stat: tensor},
+     "rng": {"torch": ByteTensor, "env": ByteTensor, "sim": ByteTensor, ...}}
+
+Files are written to ``<path>.tmp`` and moved over ``path`` with ``os.replace`` (atomic on POSIX), so
+a run killed mid-write leaves the previous checkpoint intact and no partial file under ``path``.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+
+import torch
+
+FORMAT = 1
+
+
+def atomic_save(obj: Any, path: str | Path) -> Path:
+    """``torch.save(obj)`` to ``path`` through a temporary file and ``os.replace``."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".tmp")
+    try:
+        with open(tmp, "wb") as f:
+            torch.save(obj, f)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+    return path
+
+
+def rng_states(env=None) -> dict[str, torch.Tensor]:
+    """Torch's global RNG state and the env's and simulator's generators (when given)."""
+    states = {"torch": torch.get_rng_state()}
+    if torch.cuda.is_available() and torch.cuda.is_initialized():
+        states["cuda"] = torch.cuda.get_rng_state()
+    if env is not None:
+        base = getattr(env, "base_env", env)
+        states["env"] = base.generator.get_state()
+        sim_generator = getattr(base.sim, "generator", None)
+        if isinstance(sim_generator, torch.Generator):
+            states["sim"] = sim_generator.get_state()
+    return states
+
+
+def set_rng_states(states: dict[str, torch.Tensor], env=None) -> None:
+    torch.set_rng_state(states["torch"])
+    if "cuda" in states and torch.cuda.is_available():
+        torch.cuda.set_rng_state(states["cuda"])
+    if env is not None:
+        base = getattr(env, "base_env", env)
+        if "env" in states:
+            base.generator.set_state(states["env"])
+        sim_generator = getattr(base.sim, "generator", None)
+        if "sim" in states and isinstance(sim_generator, torch.Generator):
+            sim_generator.set_state(states["sim"])
+
+
+def save_checkpoint(path: str | Path, *, algorithm: str, config: dict, counters: dict,
+                    modules: dict[str, torch.nn.Module], optimizers: dict[str, torch.optim.Optimizer],
+                    norm: dict[str, torch.Tensor], env=None, extra: dict | None = None) -> Path:
+    """Write a resumable checkpoint atomically (see the module docstring for the layout)."""
+    doc = {"format": FORMAT, "algorithm": algorithm, "config": config, "counters": counters,
+           "modules": {k: m.state_dict() for k, m in modules.items()},
+           "optimizers": {k: o.state_dict() for k, o in optimizers.items()},
+           "norm": norm, "rng": rng_states(env), "extra": extra or {}}
+    return atomic_save(doc, path)
+
+
+def load_checkpoint(path: str | Path, map_location: str | torch.device = "cpu") -> dict:
+    """Read a checkpoint with ``weights_only=True`` (plain containers and tensors only)."""
+    doc = torch.load(path, map_location=map_location, weights_only=True)
+    if doc.get("format") != FORMAT:
+        raise ValueError(f"{path}: not a falcon-rl checkpoint (format {doc.get('format')!r})")
+    return doc
+
+
+def restore(doc: dict, modules: dict[str, torch.nn.Module], optimizers: dict[str, torch.optim.Optimizer],
+            norm=None, env=None) -> dict:
+    """Load ``doc`` into the modules, optimisers, normaliser and RNGs; returns its counters."""
+    for name, module in modules.items():
+        module.load_state_dict(doc["modules"][name])
+    for name, optimizer in optimizers.items():
+        optimizer.load_state_dict(doc["optimizers"][name])
+    if norm is not None:
+        norm.load_stats(doc["norm"])
+    set_rng_states(doc["rng"], env)
+    return doc["counters"]
+
+
+__all__ = ["atomic_save", "load_checkpoint", "restore", "rng_states", "save_checkpoint", "set_rng_states"]

@@ -1,0 +1,316 @@
+"""What the PPO, SAC and TD3 recipes share: the config fields, the networks, the training env and
+the bookkeeping of a run.
+
+Networks (all read the env's "observation" [N, D] through one :class:`RunningNorm`):
+
+    PolicyNet   obs [N, D] -> loc [N, A] (pre-tanh), and a scale [N, A] for stochastic actors:
+                a learned state-independent log-std (PPO) or a second head (SAC)
+    ValueNet    obs [N, D] -> V(s) [N, 1]                                   (PPO critic)
+    QNet        obs [N, D], action [N, A] -> Q(s, a) [N, 1]               (SAC / TD3 critics)
+
+The deployed action of every algorithm is ``tanh(loc)`` (TanhNormal's deterministic sample), which
+is what :mod:`falcon_rl.objectives.export` bakes into a policy file.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import time
+from dataclasses import asdict, dataclass, field, fields
+
+import torch
+from torch import nn
+from torchrl.envs import Compose, ExcludeTransform, RewardSum, TransformedEnv
+
+from ..envs import FixedWingEnv, make_env
+
+ACTIVATIONS = {"tanh": nn.Tanh, "relu": nn.ReLU, "elu": nn.ELU, "silu": nn.SiLU}
+
+
+@dataclass
+class TrainConfig:
+    """Fields every recipe has. Frames are env steps summed over the batch of envs."""
+
+    #: Task ("altitude" or "attitude"; the other tasks work with the same recipes).
+    task: str = "altitude"
+    #: Shipped airframe name or JSON path.
+    airframe: str = "volantex_ranger"
+    #: Parallel envs in the training batch.
+    num_envs: int = 512
+    #: Simulator backend: "warp" is the fastest on CPU at these batch sizes.
+    backend: str = "warp"
+    device: str = "cpu"
+    seed: int = 0
+    #: Total env steps to train for.
+    frames: int = 10_000_000
+    #: Training episode length, s (None: the task's default). Shorter episodes show the policy more
+    #: acquisition transients per frame; the evaluation protocol still flies its own length.
+    episode_seconds: float | None = None
+    #: Multiplies the env reward before learning (returns of 3000-step episodes are large).
+    reward_scale: float = 1.0
+    #: Hidden layer widths and activation of every network.
+    cells: tuple[int, ...] = (64, 64)
+    activation: str = "tanh"
+    #: Normalise observations with running statistics (saved with the policy); the std used is at
+    #: least ``norm_min_std`` (the task observations are already scaled to O(1), and a nearly constant
+    #: channel early in training must not be blown up).
+    normalize_observations: bool = True
+    norm_min_std: float = 0.1
+    #: Start the actor's mean action at the task's trim command (else at 0, mid-range).
+    init_at_trim: bool = True
+    #: Extra options of the training env (task config fields such as reward weights), see make_env.
+    env_options: dict = field(default_factory=dict)
+    #: Output folder (checkpoint.pt, policy.pt, policy.ts, logs); None: no files.
+    out: str | None = "runs/train"
+    #: Continue from ``out``/checkpoint.pt when it exists.
+    resume: bool = False
+    #: "csv", "tensorboard", "wandb" (offline unless WANDB_MODE says otherwise) or "none".
+    logger: str = "csv"
+    #: Write the checkpoint every this many frames (and at the end).
+    checkpoint_every: int = 2_000_000
+    #: Evaluate on a short protocol every this many frames (0: only at the end).
+    eval_every: int = 0
+    #: Episodes of the periodic evaluation and of the final one, and the altitude episode length, s.
+    eval_episodes: int = 16
+    final_eval_episodes: int = 100
+    eval_seconds: float = 30.0
+    #: Torch intra-op threads; 1 is fastest for these small tensors on a shared CPU.
+    threads: int = 1
+    #: Show a tqdm progress bar.
+    progress: bool = True
+
+    def to_dict(self) -> dict:
+        return {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(self).items()}
+
+
+def config_from(cls: type, task: str, defaults: dict[str, dict], **overrides) -> TrainConfig:
+    """``cls`` with the task's defaults, then ``overrides`` (None values are ignored)."""
+    names = {f.name for f in fields(cls)}
+    unknown = set(overrides) - names
+    if unknown:
+        raise TypeError(f"unknown {cls.__name__} fields {sorted(unknown)}")
+    values = {**defaults.get(task, {}), **{k: v for k, v in overrides.items() if v is not None}}
+    return cls(task=task, **values)
+
+
+# ---------------------------------------------------------------------------------------- networks
+class RunningNorm(nn.Module):
+    """obs [N, D] -> clip((obs - mean) / max(sqrt(var), min_std), +-clip), statistics merged batch
+    by batch.
+
+    The statistics are plain tensor attributes, not buffers: TorchRL losses copy the parameters and
+    buffers of their networks (target and vmapped critics), and every copy must read the same,
+    updated statistics. :meth:`stats` / :meth:`load_stats` save and restore them.
+    """
+
+    def __init__(self, dim: int, device: torch.device | str = "cpu", clip: float = 10.0,
+                 enabled: bool = True, min_std: float = 0.1):
+        super().__init__()
+        self.enabled, self.clip, self.min_std = enabled, clip, min_std
+        self.mean = torch.zeros(dim, device=device)
+        self.var = torch.ones(dim, device=device)
+        self.count = torch.zeros((), device=device, dtype=torch.float64)
+
+    @torch.no_grad()
+    def update(self, obs: torch.Tensor) -> None:
+        """Merge the mean and variance of ``obs`` [..., D] (Chan's parallel algorithm)."""
+        if not self.enabled:
+            return
+        x = obs.reshape(-1, obs.shape[-1]).to(self.mean.dtype)
+        n, batch_mean, batch_var = x.shape[0], x.mean(0), x.var(0, unbiased=False)
+        total = self.count + n
+        delta = batch_mean - self.mean
+        self.mean.add_(delta * (n / total).to(self.mean.dtype))
+        m2 = self.var * self.count + batch_var * n + delta.square() * (self.count * n / total)
+        self.var.copy_(m2 / total)
+        self.count.copy_(total)
+
+    def forward(self, obs: torch.Tensor) -> torch.Tensor:
+        if not self.enabled:
+            return obs
+        return ((obs - self.mean) / self.std()).clamp(-self.clip, self.clip)
+
+    def std(self) -> torch.Tensor:
+        return self.var.sqrt().clamp_min(self.min_std)
+
+    def stats(self) -> dict[str, torch.Tensor]:
+        return {"mean": self.mean.clone(), "var": self.var.clone(), "count": self.count.clone(),
+                "enabled": torch.tensor(self.enabled), "clip": torch.tensor(self.clip),
+                "min_std": torch.tensor(self.min_std)}
+
+    def load_stats(self, stats: dict[str, torch.Tensor]) -> None:
+        self.mean.copy_(stats["mean"])
+        self.var.copy_(stats["var"])
+        self.count.copy_(stats["count"])
+        self.enabled, self.clip = bool(stats["enabled"]), float(stats["clip"])
+        self.min_std = float(stats["min_std"])
+
+
+def mlp(n_in: int, n_out: int, cells: tuple[int, ...], activation: str, out_gain: float = 1.0
+        ) -> nn.Sequential:
+    """Linear-activation stack, orthogonal init (gain sqrt 2), last layer gain ``out_gain``."""
+    layers: list[nn.Module] = []
+    sizes = (n_in, *cells)
+    for a, b in itertools.pairwise(sizes):
+        layers += [nn.Linear(a, b), ACTIVATIONS[activation]()]
+    layers.append(nn.Linear(sizes[-1], n_out))
+    for i, layer in enumerate(m for m in layers if isinstance(m, nn.Linear)):
+        gain = out_gain if i == len(cells) else math.sqrt(2.0)
+        nn.init.orthogonal_(layer.weight, gain)
+        nn.init.zeros_(layer.bias)
+    return nn.Sequential(*layers)
+
+
+class PolicyNet(nn.Module):
+    """obs [N, D] -> loc [N, A] (``scale=None``), or (loc, scale) [N, A] each.
+
+    ``scale="param"``: a learned log-std vector (PPO); ``scale="head"``: the MLP outputs 2A values,
+    the second half a log-std clamped to [-5, 2] (SAC). ``mlp`` holds everything that acts.
+    """
+
+    def __init__(self, norm: RunningNorm, obs_dim: int, act_dim: int, cells: tuple[int, ...],
+                 activation: str = "tanh", scale: str | None = None, init_log_std: float = -0.5):
+        super().__init__()
+        self.norm, self.act_dim, self.scale = norm, act_dim, scale
+        self.mlp = mlp(obs_dim, act_dim * (2 if scale == "head" else 1), cells, activation, out_gain=0.01)
+        if scale == "param":
+            self.log_std = nn.Parameter(torch.full((act_dim,), float(init_log_std)))
+
+    def forward(self, obs: torch.Tensor):
+        out = self.mlp(self.norm(obs))
+        loc = out[..., : self.act_dim]
+        if self.scale is None:
+            return loc
+        log_std = self.log_std.expand_as(loc) if self.scale == "param" else out[..., self.act_dim:]
+        return loc, log_std.clamp(-5.0, 2.0).exp()
+
+    @torch.no_grad()
+    def start_at(self, action: torch.Tensor) -> None:
+        """Bias the mean action to ``action`` [A] in (-1, 1): tanh(loc) = action at initialisation."""
+        self.mlp[-1].bias[: self.act_dim] = torch.atanh(action.clamp(-0.95, 0.95)).to(self.mlp[-1].bias)
+
+    def arch(self) -> dict:
+        """Plain description of the acting network (for :mod:`export`)."""
+        linear = [m for m in self.mlp if isinstance(m, nn.Linear)]
+        activation = next(k for k, v in ACTIVATIONS.items() if isinstance(self.mlp[1], v))
+        return {"obs_dim": linear[0].in_features, "act_dim": self.act_dim,
+                "out_dim": linear[-1].out_features, "cells": [m.out_features for m in linear[:-1]],
+                "activation": activation}
+
+
+class ValueNet(nn.Module):
+    """obs [N, D] -> V(s) [N, 1]."""
+
+    def __init__(self, norm: RunningNorm, obs_dim: int, cells: tuple[int, ...], activation: str = "tanh"):
+        super().__init__()
+        self.norm, self.mlp = norm, mlp(obs_dim, 1, cells, activation, out_gain=1.0)
+
+    def forward(self, obs: torch.Tensor) -> torch.Tensor:
+        return self.mlp(self.norm(obs))
+
+
+class QNet(nn.Module):
+    """obs [N, D], action [N, A] -> Q(s, a) [N, 1]."""
+
+    def __init__(self, norm: RunningNorm, obs_dim: int, act_dim: int, cells: tuple[int, ...],
+                 activation: str = "relu"):
+        super().__init__()
+        self.norm, self.mlp = norm, mlp(obs_dim + act_dim, 1, cells, activation, out_gain=1.0)
+
+    def forward(self, obs: torch.Tensor, action: torch.Tensor) -> torch.Tensor:
+        return self.mlp(torch.cat([self.norm(obs), action], dim=-1))
+
+
+# ---------------------------------------------------------------------------------------- env
+def make_train_env(cfg: TrainConfig, num_envs: int | None = None, seed_offset: int = 0) -> TransformedEnv:
+    """The task env with a RewardSum transform ("episode_reward" for the logs), without the
+    ("state", ...) and ("task", ...) entries (learning reads "observation" only)."""
+    options = dict(cfg.env_options)
+    if cfg.episode_seconds is not None:
+        options["episode_seconds"] = cfg.episode_seconds
+    base = make_env(cfg.task, cfg.airframe, num_envs=num_envs or cfg.num_envs, backend=cfg.backend,
+                    device=cfg.device, seed=cfg.seed + seed_offset, **options)
+    unused = [key for key in base.observation_spec.keys(True, True) if key[0] in ("state", "task")]
+    return TransformedEnv(base, Compose(ExcludeTransform(*unused), RewardSum()))
+
+
+def stagger_episodes(env: TransformedEnv, seed: int) -> None:
+    """Spread the first truncations over the horizon: start each env's step counter at a random
+    step, so that later batches hold every phase of the episode rather than all envs in lockstep."""
+    base: FixedWingEnv = env.base_env
+    g = torch.Generator().manual_seed(seed)
+    offsets = torch.randint(0, base.max_episode_steps, base.step_count.shape, generator=g)
+    base.step_count.copy_(offsets.to(base.step_count.device))
+
+
+def trim_action(env: TransformedEnv) -> torch.Tensor | None:
+    """The task's trim command in its action channels [A] (None when the task has no trim)."""
+    task = env.base_env.task
+    trim, channels = getattr(task, "trim", None), getattr(task, "action_channels", None)
+    if trim is None or channels is None:
+        return None
+    return trim.command[list(channels)].float().cpu()
+
+
+def make_actor_net(cfg: TrainConfig, env: TransformedEnv, scale: str | None, **kwargs) -> PolicyNet:
+    """The actor network of ``cfg`` for ``env`` with its normaliser (started at trim when asked)."""
+    obs_dim, act_dim = observation_dims(env)
+    norm = RunningNorm(obs_dim, cfg.device, enabled=cfg.normalize_observations, min_std=cfg.norm_min_std)
+    net = PolicyNet(norm, obs_dim, act_dim, cfg.cells, cfg.activation, scale=scale, **kwargs)
+    trim = trim_action(env) if cfg.init_at_trim else None
+    if trim is not None:
+        net.start_at(trim)
+    return net.to(cfg.device)
+
+
+def observation_dims(env: TransformedEnv) -> tuple[int, int]:
+    return env.observation_spec["observation"].shape[-1], env.action_spec.shape[-1]
+
+
+# ---------------------------------------------------------------------------------------- run state
+@dataclass
+class Counters:
+    """What a resumed run continues from (plain numbers only, for weights_only loading)."""
+
+    frames: int = 0
+    iterations: int = 0
+    updates: int = 0
+    episodes: int = 0
+    wall_seconds: float = 0.0
+    last_checkpoint_frames: int = 0
+    last_eval_frames: int = 0
+
+
+@dataclass
+class EpisodeStats:
+    """Running return, survival and throughput of the most recent batches (progress bar, logs)."""
+
+    mean_return: float = math.nan
+    survival: float = math.nan
+    start: float = field(default_factory=time.perf_counter)
+    frames_at_start: int = 0
+
+    def update(self, batch, reward_key=("next", "episode_reward")) -> dict[str, float]:
+        """Scalars of one collected batch (episodes that ended in it)."""
+        done = batch["next", "done"].squeeze(-1)
+        if done.any():
+            self.mean_return = float(batch.get(reward_key).squeeze(-1)[done].mean())
+            terminated = batch["next", "terminated"].squeeze(-1)[done]
+            self.survival = float(1.0 - terminated.float().mean())
+        return {"train/return": self.mean_return, "train/survival": self.survival,
+                "train/episodes_ended": float(done.sum()),
+                "train/reward": float(batch["next", "reward"].mean())}
+
+    def rate(self, frames: int) -> float:
+        return (frames - self.frames_at_start) / max(time.perf_counter() - self.start, 1e-9)
+
+
+def set_threads(cfg: TrainConfig) -> None:
+    if cfg.threads > 0 and torch.device(cfg.device).type == "cpu":
+        torch.set_num_threads(cfg.threads)
+
+
+__all__ = ["ACTIVATIONS", "Counters", "EpisodeStats", "PolicyNet", "QNet", "RunningNorm", "TrainConfig",
+           "ValueNet", "config_from", "make_actor_net", "make_train_env", "mlp", "observation_dims",
+           "set_threads", "stagger_episodes", "trim_action"]

@@ -1,0 +1,132 @@
+"""SAC (twin Q, learned temperature) on a batched falcon-rl task, CleanRL style, on TorchRL.
+
+    from falcon_rl.objectives import sac
+    summary = sac.train(sac.make_config("altitude", frames=2_000_000))
+
+One iteration: the Collector rolls ``rollout_steps`` steps of all ``num_envs`` envs (random actions
+for the first ``init_random_frames``) into a replay buffer with on-device storage; then
+``updates_per_batch`` gradient steps on sampled minibatches minimise SACLoss (critic, actor and
+temperature losses), each followed by a Polyak update of the target critics. The replay buffer is
+not checkpointed: a resumed run refills it before learning again.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+from tensordict.nn import TensorDictModule
+from torchrl.collectors import Collector
+from torchrl.data import LazyTensorStorage, ReplayBuffer
+from torchrl.modules import ProbabilisticActor, TanhNormal, ValueOperator
+from torchrl.objectives import SACLoss, SoftUpdate
+
+from .common import (
+    QNet,
+    TrainConfig,
+    config_from,
+    make_actor_net,
+    make_train_env,
+    observation_dims,
+    stagger_episodes,
+)
+from .runner import TrainingRun
+
+#: Entries of a transition kept in the replay buffer.
+TRANSITION = ("observation", "action", ("next", "observation"), ("next", "reward"), ("next", "done"),
+              ("next", "terminated"))
+
+
+@dataclass
+class SACConfig(TrainConfig):
+    """SAC hyper-parameters (on top of :class:`TrainConfig`)."""
+
+    #: Steps per env per iteration; a batch holds num_envs x rollout_steps frames.
+    rollout_steps: int = 8
+    #: Gradient steps per collected batch (update-to-data ratio = this / batch frames).
+    updates_per_batch: int = 16
+    batch_size: int = 512
+    buffer_size: int = 1_000_000
+    #: Uniform random actions before the policy acts (and before the first update).
+    init_random_frames: int = 20_000
+    actor_lr: float = 3e-4
+    critic_lr: float = 3e-4
+    alpha_lr: float = 3e-4
+    gamma: float = 0.99
+    #: Polyak factor of the target critics (target <- (1 - tau) target + tau online).
+    tau: float = 0.005
+    alpha_init: float = 0.1
+    #: Hidden layers and activation of the critics (the actor uses ``cells`` / ``activation``).
+    critic_cells: tuple[int, ...] = (256, 256)
+    critic_activation: str = "relu"
+
+
+DEFAULTS: dict[str, dict] = {
+    "altitude": {"num_envs": 64, "frames": 2_000_000, "episode_seconds": 20.0, "reward_scale": 0.1,
+                 "cells": (256, 256), "activation": "relu"},
+    "attitude": {"num_envs": 64, "frames": 2_000_000, "reward_scale": 0.1, "cells": (256, 256),
+                 "activation": "relu"},
+}
+
+
+def make_config(task: str = "altitude", **overrides) -> SACConfig:
+    """SACConfig with the task's defaults, then ``overrides``."""
+    return config_from(SACConfig, task, DEFAULTS, **overrides)
+
+
+def train(cfg: SACConfig) -> dict:
+    """Train SAC as configured; returns the run summary (and writes files under ``cfg.out``)."""
+    env = make_train_env(cfg)
+    obs_dim, act_dim = observation_dims(env)
+    actor_net = make_actor_net(cfg, env, scale="head")
+    norm = actor_net.norm
+    actor = ProbabilisticActor(TensorDictModule(actor_net, ["observation"], ["loc", "scale"]),
+                               in_keys=["loc", "scale"], spec=env.action_spec, distribution_class=TanhNormal)
+    qnet = QNet(norm, obs_dim, act_dim, cfg.critic_cells, cfg.critic_activation).to(cfg.device)
+    critic = ValueOperator(qnet, in_keys=["observation", "action"], out_keys=["state_action_value"])
+    loss = SACLoss(actor, critic, num_qvalue_nets=2, loss_function="l2", alpha_init=cfg.alpha_init,
+                   action_spec=env.action_spec_unbatched)
+    loss.make_value_estimator(gamma=cfg.gamma)
+    target_update = SoftUpdate(loss, tau=cfg.tau)
+    optimizers = {"actor": torch.optim.Adam(loss.actor_network_params.values(True, True), lr=cfg.actor_lr),
+                  "critic": torch.optim.Adam(loss.qvalue_network_params.values(True, True), lr=cfg.critic_lr),
+                  "alpha": torch.optim.Adam([loss.log_alpha], lr=cfg.alpha_lr)}
+    buffer = ReplayBuffer(storage=LazyTensorStorage(cfg.buffer_size, device=cfg.device),
+                          batch_size=cfg.batch_size)
+
+    run = TrainingRun("sac", cfg, env, actor_net, {"actor": actor_net, "loss": loss}, optimizers)
+    counters = run.start()
+    batch_frames = cfg.num_envs * cfg.rollout_steps
+    iterations = -(-run.remaining_frames() // batch_frames)
+    fresh = counters.frames == 0  # a resumed run refills the buffer with its policy, not random actions
+    learn_after = cfg.init_random_frames if fresh else cfg.batch_size
+    collector = Collector(env, actor, frames_per_batch=batch_frames, total_frames=iterations * batch_frames,
+                          init_random_frames=cfg.init_random_frames if fresh else 0, device=cfg.device,
+                          trust_policy=True,
+                          auto_register_policy_transforms=False)
+    stagger_episodes(env, cfg.seed + counters.iterations)
+    scalars: dict[str, float] = {}
+    for batch in collector:
+        batch["next", "reward"] = batch["next", "reward"] * cfg.reward_scale
+        buffer.extend(batch.select(*TRANSITION).reshape(-1))
+        norm.update(batch["observation"])
+        if len(buffer) >= learn_after:
+            for _ in range(cfg.updates_per_batch):
+                out = loss(buffer.sample())
+                for optimizer in optimizers.values():
+                    optimizer.zero_grad(set_to_none=True)
+                # each loss only reaches its own parameters (SACLoss detaches the others)
+                (out["loss_qvalue"] + out["loss_actor"] + out["loss_alpha"]).backward()
+                for optimizer in optimizers.values():
+                    optimizer.step()
+                target_update.step()
+                counters.updates += 1
+            out = out.detach()
+            scalars = {"loss/critic": float(out["loss_qvalue"]), "loss/actor": float(out["loss_actor"]),
+                       "train/alpha": float(out["alpha"]), "train/entropy": float(out["entropy"])}
+        run.after_batch(batch, scalars)
+    collector.shutdown()
+    return run.finish()
+
+
+__all__ = ["DEFAULTS", "SACConfig", "make_config", "train"]

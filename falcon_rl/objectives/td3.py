@@ -1,0 +1,132 @@
+"""TD3 (twin Q, target-policy smoothing, delayed actor) on a batched falcon-rl task, CleanRL style,
+on TorchRL.
+
+    from falcon_rl.objectives import td3
+    summary = td3.train(td3.make_config("altitude", frames=2_000_000))
+
+One iteration: the Collector rolls ``rollout_steps`` steps of all ``num_envs`` envs with Gaussian
+exploration noise (random actions for the first ``init_random_frames``) into a replay buffer with
+on-device storage; then ``updates_per_batch`` critic steps on sampled minibatches (TD3Loss), an
+actor step and Polyak target update every ``policy_delay`` of them. The replay buffer is not
+checkpointed: a resumed run refills it before learning again.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+from tensordict.nn import TensorDictModule, TensorDictSequential
+from torch import nn
+from torchrl.collectors import Collector
+from torchrl.data import LazyTensorStorage, ReplayBuffer
+from torchrl.modules import AdditiveGaussianModule, ValueOperator
+from torchrl.objectives import SoftUpdate, TD3Loss
+
+from .common import (
+    QNet,
+    TrainConfig,
+    config_from,
+    make_actor_net,
+    make_train_env,
+    observation_dims,
+    stagger_episodes,
+)
+from .runner import TrainingRun
+from .sac import TRANSITION
+
+
+@dataclass
+class TD3Config(TrainConfig):
+    """TD3 hyper-parameters (on top of :class:`TrainConfig`)."""
+
+    #: Steps per env per iteration; a batch holds num_envs x rollout_steps frames.
+    rollout_steps: int = 8
+    #: Critic steps per collected batch; the actor and targets step every ``policy_delay``.
+    updates_per_batch: int = 16
+    policy_delay: int = 2
+    batch_size: int = 512
+    buffer_size: int = 1_000_000
+    init_random_frames: int = 20_000
+    actor_lr: float = 3e-4
+    critic_lr: float = 3e-4
+    gamma: float = 0.99
+    tau: float = 0.005
+    #: Std of the Gaussian exploration noise on the [-1, 1] actions.
+    exploration_noise: float = 0.1
+    #: Target-policy smoothing noise std and its clip.
+    policy_noise: float = 0.2
+    noise_clip: float = 0.5
+    critic_cells: tuple[int, ...] = (256, 256)
+    critic_activation: str = "relu"
+
+
+DEFAULTS: dict[str, dict] = {
+    "altitude": {"num_envs": 64, "frames": 2_000_000, "episode_seconds": 20.0, "reward_scale": 0.1,
+                 "cells": (256, 256), "activation": "relu"},
+    "attitude": {"num_envs": 64, "frames": 2_000_000, "reward_scale": 0.1, "cells": (256, 256),
+                 "activation": "relu"},
+}
+
+
+def make_config(task: str = "altitude", **overrides) -> TD3Config:
+    """TD3Config with the task's defaults, then ``overrides``."""
+    return config_from(TD3Config, task, DEFAULTS, **overrides)
+
+
+def train(cfg: TD3Config) -> dict:
+    """Train TD3 as configured; returns the run summary (and writes files under ``cfg.out``)."""
+    env = make_train_env(cfg)
+    obs_dim, act_dim = observation_dims(env)
+    actor_net = make_actor_net(cfg, env, scale=None)
+    norm = actor_net.norm
+    actor = TensorDictModule(nn.Sequential(actor_net, nn.Tanh()), ["observation"], ["action"])
+    explore = TensorDictSequential(actor, AdditiveGaussianModule(
+        env.action_spec_unbatched, sigma_init=cfg.exploration_noise, sigma_end=cfg.exploration_noise,
+        device=cfg.device))
+    qnet = QNet(norm, obs_dim, act_dim, cfg.critic_cells, cfg.critic_activation).to(cfg.device)
+    critic = ValueOperator(qnet, in_keys=["observation", "action"], out_keys=["state_action_value"])
+    loss = TD3Loss(actor, critic, action_spec=env.action_spec_unbatched, num_qvalue_nets=2,
+                   loss_function="l2", policy_noise=cfg.policy_noise, noise_clip=cfg.noise_clip)
+    loss.make_value_estimator(gamma=cfg.gamma)
+    target_update = SoftUpdate(loss, tau=cfg.tau)
+    optimizers = {"actor": torch.optim.Adam(loss.actor_network_params.values(True, True), lr=cfg.actor_lr),
+                  "critic": torch.optim.Adam(loss.qvalue_network_params.values(True, True), lr=cfg.critic_lr)}
+    buffer = ReplayBuffer(storage=LazyTensorStorage(cfg.buffer_size, device=cfg.device),
+                          batch_size=cfg.batch_size)
+
+    run = TrainingRun("td3", cfg, env, actor_net, {"actor": actor_net, "loss": loss}, optimizers)
+    counters = run.start()
+    batch_frames = cfg.num_envs * cfg.rollout_steps
+    iterations = -(-run.remaining_frames() // batch_frames)
+    fresh = counters.frames == 0  # a resumed run refills the buffer with its policy, not random actions
+    learn_after = cfg.init_random_frames if fresh else cfg.batch_size
+    collector = Collector(env, explore, frames_per_batch=batch_frames, total_frames=iterations * batch_frames,
+                          init_random_frames=cfg.init_random_frames if fresh else 0, device=cfg.device,
+                          trust_policy=True, auto_register_policy_transforms=False)
+    stagger_episodes(env, cfg.seed + counters.iterations)
+    scalars: dict[str, float] = {}
+    for batch in collector:
+        batch["next", "reward"] = batch["next", "reward"] * cfg.reward_scale
+        buffer.extend(batch.select(*TRANSITION).reshape(-1))
+        norm.update(batch["observation"])
+        if len(buffer) >= learn_after:
+            for _ in range(cfg.updates_per_batch):
+                counters.updates += 1
+                out = loss(buffer.sample())
+                update_actor = counters.updates % cfg.policy_delay == 0
+                for optimizer in optimizers.values():
+                    optimizer.zero_grad(set_to_none=True)
+                (out["loss_qvalue"] + (out["loss_actor"] if update_actor else 0.0)).backward()
+                optimizers["critic"].step()
+                if update_actor:
+                    optimizers["actor"].step()
+                    target_update.step()
+            out = out.detach()
+            scalars = {"loss/critic": float(out["loss_qvalue"]), "loss/actor": float(out["loss_actor"])}
+        run.after_batch(batch, scalars)
+    collector.shutdown()
+    return run.finish()
+
+
+__all__ = ["DEFAULTS", "TD3Config", "make_config", "train"]
