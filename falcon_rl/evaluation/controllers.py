@@ -1,7 +1,8 @@
 """Controllers by name for the evaluation harness: a factory takes the env, returns a policy.
 
 "lqr" and "mppi" are the classical baselines, "trim" holds the trim commands (a floor every
-controller must beat); any other string is a path to a saved policy.
+controller must beat), "ppo" the shipped PPO policy of the task and airframe; any other string is a
+path to a saved policy.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ from tensordict.nn import TensorDictModuleBase
 
 from ..envs import FixedWingEnv
 
-CONTROLLERS = ("lqr", "mppi", "trim")
+CONTROLLERS = ("lqr", "mppi", "trim", "ppo")
 
 
 class TrimHold(TensorDictModuleBase):
@@ -50,6 +51,9 @@ def make_controller(name: str, env: FixedWingEnv) -> TensorDictModuleBase:
 
         return make_mppi(env)
     path = Path(name)
+    if name == "ppo":  # the shipped policy (package data) of this task and airframe
+        from ..policies import shipped_policy
+        path = shipped_policy(task, env.config.airframe)
     if not path.is_file():
         raise ValueError(f"controller must be one of {list(CONTROLLERS)} or a policy file; {name!r} is "
                          "neither")

@@ -1,0 +1,67 @@
+"""``falcon-rl train``: train PPO, SAC or TD3 on a task with the recipe's per-task defaults.
+
+    falcon-rl train ppo --task altitude --airframe volantex_ranger --out runs/ppo_altitude
+    falcon-rl train ppo --task altitude --out runs/ppo_altitude --resume      # continue a killed run
+
+Writes ``checkpoint.pt`` (resumable), ``policy.pt`` (for ``falcon-rl eval --controller PATH``),
+``policy.ts`` (TorchScript), ``summary.json`` and logs under ``--out``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+from ..cli import UsageError, emit
+
+NAME = "train"
+HELP = "train PPO, SAC or TD3 on a task (checkpoints, policy export, final evaluation)"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("algorithm", choices=["ppo", "sac", "td3"])
+    parser.add_argument("--task", default="altitude", help="altitude, attitude (or another task)")
+    parser.add_argument("--airframe", default="volantex_ranger")
+    parser.add_argument("--envs", type=int, default=None, help="parallel envs (default: the recipe's)")
+    parser.add_argument("--frames", type=int, default=None, help="total env steps (default: the recipe's)")
+    parser.add_argument("--device", default="cpu")
+    parser.add_argument("--backend", choices=["torch", "warp"], default="warp")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--out", default=None, help="output folder (default runs/<alg>_<task>_<airframe>)")
+    parser.add_argument("--resume", action="store_true", help="continue from <out>/checkpoint.pt")
+    parser.add_argument("--logger", choices=["csv", "tensorboard", "wandb", "none"], default="csv")
+    parser.add_argument("--eval-every", type=int, default=None, help="frames between evaluations")
+    parser.add_argument("--eval-episodes", type=int, default=None, help="episodes of the final evaluation")
+    parser.add_argument("--threads", type=int, default=None, help="torch CPU threads (default 1)")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..objectives import algorithm
+
+    for name in ("envs", "frames", "eval_episodes", "threads"):
+        value = getattr(args, name)
+        if value is not None and value < (0 if name == "eval_episodes" else 1):
+            raise UsageError(f"--{name.replace('_', '-')} must be positive, got {value}")
+    recipe = algorithm(args.algorithm)
+    out = args.out or f"runs/{args.algorithm}_{args.task}_{args.airframe}"
+    cfg = recipe.make_config(args.task, airframe=args.airframe, num_envs=args.envs, frames=args.frames,
+                             device=args.device, backend=args.backend, seed=args.seed, out=out,
+                             resume=args.resume, logger=args.logger, eval_every=args.eval_every,
+                             final_eval_episodes=args.eval_episodes, threads=args.threads,
+                             progress=not args.no_progress and not args.json)
+    summary = recipe.train(cfg)
+    summary["config"] = cfg.to_dict()
+    lines = [f"{args.algorithm} on {args.task} / {args.airframe}: {summary['frames']:,} frames in "
+             f"{summary['wall_seconds']:.0f} s ({summary['env_steps_per_s']:,.0f} env-steps/s "
+             "incl. learning)"]
+    for key in ("policy", "torchscript", "checkpoint"):
+        if key in summary:
+            lines.append(f"{key}: {summary[key]}")
+    if summary.get("eval"):
+        lines.append(f"evaluation ({summary['eval_episodes']} episodes): " + ", ".join(
+            f"{k} {v:.3g}" for k, v in summary["eval"].items() if not math.isnan(v)))
+    summary["eval"] = summary.get("eval") and {k: (None if isinstance(v, float) and math.isnan(v) else v)
+                                               for k, v in summary["eval"].items()}
+    emit(args, summary, "\n".join(lines))
+    return 0
