@@ -1,0 +1,124 @@
+"""Training recipes end to end on tiny configs: checkpoints, resume, atomic writes, export, CLI, and
+the shipped policies."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+import torch
+
+import falcon_rl
+from falcon_rl.cli import main
+from falcon_rl.objectives import algorithm, load_policy
+from falcon_rl.objectives.checkpoint import atomic_save, load_checkpoint
+from falcon_rl.objectives.common import RunningNorm
+from falcon_rl.objectives.export import read_policy
+from falcon_rl.policies import available, shipped_policy
+
+TINY = {"ppo": {"num_envs": 8, "rollout_steps": 8, "epochs": 1, "minibatches": 2},
+        "sac": {"num_envs": 8, "rollout_steps": 4, "updates_per_batch": 2, "batch_size": 16,
+                "init_random_frames": 32, "buffer_size": 1000, "critic_cells": (16,), "cells": (16,)},
+        "td3": {"num_envs": 8, "rollout_steps": 4, "updates_per_batch": 2, "batch_size": 16,
+                "init_random_frames": 32, "buffer_size": 1000, "critic_cells": (16,), "cells": (16,)}}
+
+
+def tiny(name: str, tmp_path, frames: int, **kw):
+    recipe = algorithm(name)
+    options = {**TINY[name], "frames": frames, "out": str(tmp_path / name), "final_eval_episodes": 0,
+               "progress": False, "checkpoint_every": 10**9, **kw}
+    return recipe, recipe.make_config("altitude", **options)
+
+
+@pytest.mark.parametrize("name", ["ppo", "sac", "td3"])
+def test_recipe_trains_checkpoints_and_resumes(name, tmp_path):
+    recipe, cfg = tiny(name, tmp_path, frames=128)
+    first = recipe.train(cfg)
+    assert first["frames"] == 128 and first["updates"] > 0
+    doc = load_checkpoint(tmp_path / name / "checkpoint.pt")  # weights_only=True inside
+    assert doc["counters"]["frames"] == 128 and doc["algorithm"] == name
+    iterations = doc["counters"]["iterations"]
+    # "kill" after the first run, then resume to twice the frames: the counters continue
+    cfg.resume, cfg.frames = True, 256
+    second = recipe.train(cfg)
+    assert second["frames"] == 256
+    assert second["iterations"] == 2 * iterations
+    assert second["updates"] > first["updates"]
+    assert load_checkpoint(tmp_path / name / "checkpoint.pt")["counters"]["frames"] == 256
+    assert (tmp_path / name / "policy.pt").exists() and (tmp_path / name / "policy.ts").exists()
+    assert list((tmp_path / name / "logs").rglob("*.csv"))
+
+
+def test_resume_restores_weights_and_rng(tmp_path):
+    recipe, cfg = tiny("ppo", tmp_path, frames=64)
+    recipe.train(cfg)
+    doc = torch.load(tmp_path / "ppo" / "checkpoint.pt", weights_only=True)
+    assert set(doc["modules"]) == {"actor", "critic"} and "optimizer" in doc["optimizers"]
+    assert {"torch", "env", "sim"} <= set(doc["rng"]) and doc["norm"]["count"] > 0
+
+
+def test_atomic_save_leaves_no_partial_file(tmp_path, monkeypatch):
+    path = tmp_path / "checkpoint.pt"
+    atomic_save({"a": torch.ones(3)}, path)
+
+    def broken_save(obj, f, *args, **kwargs):
+        f.write(b"half a checkpoint")
+        raise KeyboardInterrupt  # a kill in the middle of the write
+
+    monkeypatch.setattr(torch, "save", broken_save)
+    with pytest.raises(KeyboardInterrupt):
+        atomic_save({"a": torch.zeros(3)}, path)
+    monkeypatch.undo()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["checkpoint.pt"]
+    assert torch.equal(torch.load(path, weights_only=True)["a"], torch.ones(3))
+
+
+def test_export_round_trip_gives_the_same_actions(tmp_path):
+    recipe, cfg = tiny("ppo", tmp_path, frames=64)
+    recipe.train(cfg)
+    env = falcon_rl.make_env("altitude", "volantex_ranger", num_envs=5, backend="warp", seed=3)
+    td = env.reset()
+    module = load_policy(tmp_path / "ppo" / "policy.pt", env)
+    scripted = torch.jit.load(str(tmp_path / "ppo" / "policy.ts"))
+    action = module(td.clone())["action"]
+    assert action.shape == (5, 2) and action.abs().max() <= 1
+    torch.testing.assert_close(scripted(td["observation"].float()), action.float())
+    _, meta = read_policy(tmp_path / "ppo" / "policy.pt")
+    assert meta["task"] == "altitude" and meta["airframe"] == "volantex_ranger"
+
+
+def test_running_norm_matches_batch_statistics():
+    x = torch.randn(1000, 3) * torch.tensor([1.0, 2.0, 0.5]) + 4.0
+    norm = RunningNorm(3, min_std=1e-6)
+    for chunk in x.split(128):
+        norm.update(chunk)
+    torch.testing.assert_close(norm.mean, x.mean(0), atol=1e-4, rtol=1e-4)
+    torch.testing.assert_close(norm.var, x.var(0, unbiased=False), atol=1e-3, rtol=1e-3)
+
+
+def test_train_cli_json(tmp_path, capsys):
+    out = tmp_path / "cli"
+    code = main(["train", "ppo", "--task", "altitude", "--envs", "8", "--frames", "256", "--out", str(out),
+                 "--eval-episodes", "0", "--json"])
+    assert code == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["algorithm"] == "ppo" and doc["frames"] == 256 and doc["env_steps_per_s"] > 0
+    assert {"policy", "torchscript", "checkpoint", "config", "wall_seconds", "iterations"} <= set(doc)
+    assert doc["config"]["num_envs"] == 8
+    assert main(["train", "ppo", "--envs", "0"]) == 2
+
+
+@pytest.mark.parametrize("stem", available())
+def test_shipped_policies_load_and_act(stem):
+    _, task, *airframe = stem.split("_")
+    env = falcon_rl.make_env(task, "_".join(airframe), num_envs=4, backend="warp", seed=0)
+    policy = load_policy(shipped_policy(task, "_".join(airframe)), env)
+    td = env.reset()
+    for _ in range(5):
+        td = env.step_mdp(env.step(policy(td)))
+    assert torch.isfinite(td["observation"]).all()
+
+
+def test_unknown_shipped_policy_is_a_clear_error():
+    with pytest.raises(ValueError, match="no shipped"):
+        shipped_policy("altitude", "no_such_airframe")
