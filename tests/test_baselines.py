@@ -80,4 +80,6 @@ def test_mppi_plans_inside_the_action_spec():
     assert actions.shape == (2, 20, 2)
     assert env.action_spec.is_in(actions[:, -1])
     assert len(policy.planning_seconds) == 20 // 5
-    assert policy.plan.shape == (2, 10, 2)
+    assert policy.plan.shape == (2, policy.horizon, 2)
+    lag = max(m.time_constant for m in env.sim.airframe.motors)
+    assert policy.horizon_seconds >= 2 * lag + 1.0  # the plan sees the throttle act

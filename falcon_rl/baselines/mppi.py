@@ -10,7 +10,8 @@ scored by the task cost, and averaged with weights exp(-(c - c_min) / (lambda (c
 Altitude cost per planning step (tau ahead), with the reference ramp extrapolated in closed form:
 
     c = (h - h_ref(tau))^2 / s_h^2 + (hdot - hdot_ref(tau))^2 / s_hd^2 + (V - V*)^2 / s_V^2
-        + q^2 / s_q^2 + ||U_t - U_{t-1}||^2 / s_du^2 + penalties (alpha, airspeed margin, ground)
+        + q^2 / s_q^2 + ||U_t - U_{t-1}||^2 / s_du^2 + ||U_t - U_trim||^2 / s_u^2
+        + penalties (alpha, airspeed margin, ground)
 
 The vertical-speed term and a horizon several times the climb transient are what let the planner
 stop at the target instead of flying through it. The attitude cost scores bank, climb-rate and
@@ -43,13 +44,15 @@ class MPPIConfig:
     #: Temperature as a fraction of the batch's mean cost above the best.
     temperature: float = 0.2
     #: Sampling noise per command channel (elevator, aileron, rudder, throttle), normalised units.
-    noise_sigma: tuple[float, float, float, float] = (0.05, 0.05, 0.05, 0.15)
+    noise_sigma: tuple[float, float, float, float] = (0.03, 0.05, 0.05, 0.15)
     altitude_scale: float = 0.5
     climb_rate_scale: float = 0.3
     airspeed_scale: float = 1.0
     pitch_rate_scale: float = 0.5
     bank_scale: float = math.radians(3.0)
     smoothness_scale: float = 0.3
+    #: Control effort: deviation of the commands from trim, normalised units.
+    effort_scale: float = 0.25
     #: Spacing of the noise knots (the noise is linear between them), s.
     noise_knot_seconds: float = 0.25
     penalty: float = 1e3
@@ -68,7 +71,10 @@ class MPPI(TensorDictModuleBase):
         task = env.task
         self.channels = list(task.action_channels)
         self.n, self.k = env.sim.num_envs, cfg.samples
-        self.horizon = max(1, round(cfg.horizon_seconds / cfg.plan_dt))
+        # The horizon must see the throttle act: at least twice the slowest throttle lag plus 1 s.
+        lag = max(m.time_constant for m in env.sim.airframe.motors)
+        self.horizon_seconds = max(cfg.horizon_seconds, 2.0 * lag + 1.0)
+        self.horizon = max(1, round(self.horizon_seconds / cfg.plan_dt))
         self.replan_every = max(1, round(cfg.replan_seconds / env.env_dt))
         self.plan_hold = max(1, round(cfg.plan_dt / env.env_dt))
         self.shift = max(1, round(cfg.replan_seconds / cfg.plan_dt))
@@ -154,12 +160,14 @@ class MPPI(TensorDictModuleBase):
         cost = torch.zeros(n * k, device=self.plan.device, dtype=self.plan.dtype)
         flat = candidates.reshape(n * k, h, a)
         previous = self.plan[:, :1].expand(n, k, a).reshape(n * k, a)
+        trim = self.trim_command[self.channels]
         for j in range(h):
             command[:, self.channels] = flat[:, j]
             for _ in range(self.substeps):
                 self.planner.step(command)
             cost += self._step_cost(self.planner.x, ref, (j + 1) * cfg.plan_dt)
             cost += ((flat[:, j] - previous) ** 2).sum(-1) / cfg.smoothness_scale**2
+            cost += ((flat[:, j] - trim) ** 2).sum(-1) / cfg.effort_scale**2
             previous = flat[:, j]
         cost = cost.reshape(n, k)
         best = cost.min(dim=1, keepdim=True).values
