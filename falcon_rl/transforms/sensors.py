@@ -104,7 +104,8 @@ class SensorTransform(Transform):
         super().__init__(in_keys=[], out_keys=[])
         self.config = config
         self.channels = config.channels()
-        self.generator = torch.Generator().manual_seed(int(seed))
+        self.seed = int(seed)
+        self.generator: torch.Generator | None = None  # on the env's device, made at first use
         self._state: dict[str, _ChannelState] = {}
         self._counter: torch.Tensor | None = None
 
@@ -114,7 +115,9 @@ class SensorTransform(Transform):
 
     # ------------------------------------------------------------------ chain
     def _randn(self, like: torch.Tensor) -> torch.Tensor:
-        return torch.randn(like.shape, generator=self.generator, dtype=like.dtype).to(like.device)
+        if self.generator is None:
+            self.generator = torch.Generator(device=like.device).manual_seed(self.seed)
+        return torch.randn(like.shape, generator=self.generator, dtype=like.dtype, device=like.device)
 
     def _corrupt(self, key: str, x: torch.Tensor, st: _ChannelState) -> torch.Tensor:
         ch = st.channel
