@@ -32,7 +32,7 @@ def run(args: argparse.Namespace) -> int:
         from ..derive.writer import write_airframe
         derived = derive_airframe(geometry)
     except ImportError as exc:
-        raise UsageError(f"{exc} (install the 'derive' extra: pip install 'falcon-rl[derive]')") from exc
+        raise UsageError(str(exc)) from exc
     doc = derived.document
     out = Path(args.out) if args.out else geometry.resolve().parent.parent / f"{doc['name']}.json"
     write_airframe(doc, out)
