@@ -57,7 +57,7 @@ class PPOConfig(TrainConfig):
     init_log_std: float = -1.0
 
 
-#: Per-task defaults that converge (see falcon_rl/policies/README.md for the runs).
+#: Per-task defaults. Not yet tuned to convergence on altitude (see falcon_rl/policies/README.md).
 DEFAULTS: dict[str, dict] = {
     "altitude": {"num_envs": 512, "frames": 12_000_000, "episode_seconds": 20.0, "reward_scale": 0.1},
     "attitude": {"num_envs": 512, "frames": 20_000_000, "reward_scale": 0.1},
