@@ -112,6 +112,8 @@ def run(args: argparse.Namespace) -> int:
     out.mkdir(parents=True, exist_ok=True)
     results, figures, training = _protocol(args, out)
     source = "trained here from scratch" if args.train else "shipped (falcon_rl/policies)"
+    if not any(r.controller == "PPO" for r in results):
+        source = "not scored: no shipped policy for this airframe"
     report = write_report(results, out, figures, "falcon-rl demo")
     trim_lines, trim_doc = _trims_and_ground_effect(out)
     text = report.read_text()
