@@ -16,7 +16,7 @@ def test_ge_table_physics(request, name):
     rows = ground_effect_table(airframe)
     g = airframe.geometry
     for r in rows:
-        _, kd = phillips_hunsaker(torch.tensor(r.h_over_b, dtype=torch.float64),
+        _, kd = phillips_hunsaker(torch.tensor(r.wing_h_over_b, dtype=torch.float64),
                                   torch.tensor(g.aspect_ratio, dtype=torch.float64),
                                   torch.tensor(g.taper_ratio, dtype=torch.float64),
                                   torch.tensor(r.cl_oge, dtype=torch.float64))

@@ -3,7 +3,8 @@
 For each h/b the airframe is trimmed straight and level at cruise speed with the correction on
 and off. The theory column is the lifting-line prediction at fixed lift coefficient: only the
 induced drag changes, by the Phillips-Hunsaker factor kappa_D at the out-of-ground-effect trim C_L,
-so delta_T / T = (kappa_D - 1) C_Di / C_D.
+so delta_T / T = (kappa_D - 1) C_Di / C_D, with kappa_D at the height of the wing quarter chord
+(where the model applies the correction; rows are labelled by the CG's h/b).
 """
 
 from __future__ import annotations
@@ -13,7 +14,9 @@ from dataclasses import asdict, dataclass
 import torch
 
 from ..airframe import Airframe
+from ..physics.dynamics import evaluate
 from ..physics.ground_effect import phillips_hunsaker
+from ..physics.params import build_params
 from ..physics.trim import trim_level
 
 H_OVER_B = (0.25, 0.5, 1.0, 2.0, 3.0, 6.0)
@@ -21,8 +24,9 @@ H_OVER_B = (0.25, 0.5, 1.0, 2.0, 3.0, 6.0)
 
 @dataclass
 class GroundEffectRow:
-    h_over_b: float
+    h_over_b: float  # CG height over span (the table's row)
     height_m: float
+    wing_h_over_b: float  # wing quarter-chord height over span, where the correction is evaluated
     thrust_ge_n: float
     thrust_no_ge_n: float
     delta_percent: float
@@ -45,7 +49,11 @@ def ground_effect_table(airframe: Airframe, airspeed: float | None = None,
     ge = trim_level(airframe, v, heights, ground_effect=model)
     oge = trim_level(airframe, v, heights, ground_effect=False)
     g = airframe.geometry
-    kappa_l, kappa_d = phillips_hunsaker(ratios, torch.tensor(g.aspect_ratio, dtype=torch.float64),
+    # The model evaluates ground effect at the wing quarter chord (attitude included), so the
+    # prediction does too: h_wing / b at the out-of-ground-effect trim.
+    params = build_params(airframe, len(h_over_b), dtype=torch.float64, ground_effect=False)
+    wing_ratio = evaluate(oge.state, params).wing_height / g.span
+    kappa_l, kappa_d = phillips_hunsaker(wing_ratio, torch.tensor(g.aspect_ratio, dtype=torch.float64),
                                          torch.tensor(g.taper_ratio, dtype=torch.float64),
                                          oge.lift_coefficient)
     del kappa_l
@@ -53,7 +61,7 @@ def ground_effect_table(airframe: Airframe, airspeed: float | None = None,
     rows = []
     for i, r in enumerate(h_over_b):
         rows.append(GroundEffectRow(
-            h_over_b=float(r), height_m=float(heights[i]),
+            h_over_b=float(r), height_m=float(heights[i]), wing_h_over_b=float(wing_ratio[i]),
             thrust_ge_n=float(ge.thrust[i]), thrust_no_ge_n=float(oge.thrust[i]),
             delta_percent=float(100 * (ge.thrust[i] / oge.thrust[i] - 1)),
             theory_percent=float(100 * theory[i]),
