@@ -134,11 +134,15 @@ class AttitudeTask(Task):
         self._update_errors(state)
 
     def observe(self, state: TensorDictBase) -> torch.Tensor:
+        # Errors from the state being observed (measured when a sensor chain is on), not the
+        # true-state errors that the reward and metrics use.
+        climb_rate = -state["velocity_ned"][:, 2]
+        errors = torch.stack([state["euler"][:, 0], climb_rate, state["airspeed"]], dim=-1) - self.commanded
         rates = state["angular_rate_body"] / 2.0
         euler = state["euler"][:, :2] / (math.pi / 4)
         air = torch.stack([state["alpha"], state["beta"]], dim=-1) / (20.0 * DEG)
         v_z = state["velocity_ned"][:, 2:3] / self.climb_scale
-        obs = torch.cat([self.errors / self.error_scale, euler, rates, air, v_z, self.previous_action],
+        obs = torch.cat([errors / self.error_scale, euler, rates, air, v_z, self.previous_action],
                         dim=-1)
         return obs.clamp(-self.observation_clip, self.observation_clip)
 
