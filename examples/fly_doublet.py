@@ -11,10 +11,10 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import torch  # noqa: E402
+import matplotlib.pyplot as plt
+import torch
 
-from falcon_rl import Simulator, load_airframe, trim_level  # noqa: E402
+from falcon_rl import Simulator, load_airframe, trim_level
 
 
 def main() -> None:
