@@ -146,16 +146,13 @@ def project(x: torch.Tensor, p: ModelParams) -> torch.Tensor:
                       x[:, S.VELOCITY], x[:, S.ANGULAR_RATE], pos, rate, thr], dim=-1)
 
 
-def ground_contact(x: torch.Tensor, p: ModelParams) -> torch.Tensor:
-    """[N] bool: the CG or a wing tip (quarter chord, +-b/2) is at or below the ground."""
-    rot_z = rotation_matrix(x[:, S.QUATERNION])[:, 2, :]  # NED-down row
-    height = -x[:, 2]
-    tip = p.wing_quarter_chord.unsqueeze(1).repeat(1, 2, 1)
-    tip[:, 0, 1] = 0.5 * p.span
-    tip[:, 1, 1] = -0.5 * p.span
-    tip_height = height[:, None] - (tip * rot_z[:, None, :]).sum(-1)
-    # torch.minimum of the two tips: a reduction over a size-2 axis is far slower on CPU.
-    return (height <= 0.0) | (torch.minimum(tip_height[:, 0], tip_height[:, 1]) <= 0.0)
+def ground_contact(ev: Evaluation, p: ModelParams) -> torch.Tensor:
+    """[N] bool: the CG or a wing tip (quarter chord, +-b/2) is at or below the ground.
+
+    The tips sit at the quarter-chord point +-b/2 along body y, so their heights are
+    wing_height -+ (b/2) R[2, 1]; the lower one is wing_height - (b/2) |R[2, 1]|."""
+    lowest_tip = ev.wing_height - 0.5 * p.span * ev.rotation[:, 2, 1].abs()
+    return (ev.height <= 0.0) | (lowest_tip <= 0.0)
 
 
 # ---------------------------------------------------------------------------------------- warp twins

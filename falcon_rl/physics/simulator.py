@@ -20,7 +20,7 @@ from . import state as S
 from .dynamics import AirInputs, derivative, evaluate, ground_contact, project
 from .integrators import INTEGRATORS
 from .params import build_params
-from .rotations import body_to_ned, euler_to_quaternion, ned_to_body, quaternion_to_euler
+from .rotations import euler_to_quaternion, ned_to_body, quaternion_to_euler
 from .trim import trim_level
 from .wind import Turbulence, TurbulenceConfig, dryden_step, turbulence_config
 
@@ -256,7 +256,7 @@ class Simulator:
                 "quaternion": q.clone(),
                 "euler": quaternion_to_euler(q),
                 "velocity_body": x[:, S.VELOCITY].clone(),
-                "velocity_ned": body_to_ned(q, x[:, S.VELOCITY]),
+                "velocity_ned": (ev.rotation @ x[:, S.VELOCITY].unsqueeze(-1)).squeeze(-1),
                 "angular_rate_body": x[:, S.ANGULAR_RATE].clone(),
                 "airspeed": ev.airspeed,
                 "alpha": ev.alpha,
@@ -269,7 +269,7 @@ class Simulator:
                 "thrust": ev.thrust.sum(-1),
                 "aero_coefficients": ev.coefficients,
                 "command": self.command.clone(),
-                "ground_contact": ground_contact(x, self.params),
+                "ground_contact": ground_contact(ev, self.params),
                 "time": self.time.clone(),
                 "gust_velocity_body": self.gust_velocity_body.clone(),
                 "gust_rate_body": self.gust_rate_body.clone(),
