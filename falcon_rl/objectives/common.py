@@ -83,6 +83,40 @@ class TrainConfig:
     def to_dict(self) -> dict:
         return {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(self).items()}
 
+@dataclass
+class OffPolicyConfig(TrainConfig):
+    """Replay-based hyper-parameters shared by SAC and TD3 (on top of :class:`TrainConfig`)."""
+
+    #: Steps per env per iteration; a batch holds num_envs x rollout_steps frames.
+    rollout_steps: int = 8
+    #: Gradient steps per collected batch (update-to-data ratio = this / batch frames).
+    updates_per_batch: int = 16
+    batch_size: int = 512
+    buffer_size: int = 1_000_000
+    #: Uniform random actions before the policy acts (and before the first update).
+    init_random_frames: int = 20_000
+    actor_lr: float = 3e-4
+    critic_lr: float = 3e-4
+    gamma: float = 0.99
+    #: Polyak factor of the target critics (target <- (1 - tau) target + tau online).
+    tau: float = 0.005
+    #: Hidden layers and activation of the critics (the actor uses ``cells`` / ``activation``).
+    critic_cells: tuple[int, ...] = (256, 256)
+    critic_activation: str = "relu"
+
+
+#: Per-task defaults of the off-policy recipes.
+OFF_POLICY_DEFAULTS: dict[str, dict] = {
+    "altitude": {"num_envs": 64, "frames": 2_000_000, "episode_seconds": 20.0, "reward_scale": 0.1,
+                 "cells": (256, 256), "activation": "relu"},
+    "attitude": {"num_envs": 64, "frames": 2_000_000, "reward_scale": 0.1, "cells": (256, 256),
+                 "activation": "relu"},
+}
+
+#: Entries of a transition kept in the replay buffer.
+TRANSITION = ("observation", "action", ("next", "observation"), ("next", "reward"), ("next", "done"),
+              ("next", "terminated"))
+
 
 def config_from(cls: type, task: str, defaults: dict[str, dict], **overrides) -> TrainConfig:
     """``cls`` with the task's defaults, then ``overrides`` (None values are ignored)."""

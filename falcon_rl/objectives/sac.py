@@ -22,8 +22,10 @@ from torchrl.modules import ProbabilisticActor, TanhNormal, ValueOperator
 from torchrl.objectives import SACLoss, SoftUpdate
 
 from .common import (
+    OFF_POLICY_DEFAULTS,
+    TRANSITION,
+    OffPolicyConfig,
     QNet,
-    TrainConfig,
     config_from,
     make_actor_net,
     make_train_env,
@@ -32,41 +34,16 @@ from .common import (
 )
 from .runner import TrainingRun
 
-#: Entries of a transition kept in the replay buffer.
-TRANSITION = ("observation", "action", ("next", "observation"), ("next", "reward"), ("next", "done"),
-              ("next", "terminated"))
-
 
 @dataclass
-class SACConfig(TrainConfig):
-    """SAC hyper-parameters (on top of :class:`TrainConfig`)."""
+class SACConfig(OffPolicyConfig):
+    """SAC hyper-parameters (on top of :class:`OffPolicyConfig`)."""
 
-    #: Steps per env per iteration; a batch holds num_envs x rollout_steps frames.
-    rollout_steps: int = 8
-    #: Gradient steps per collected batch (update-to-data ratio = this / batch frames).
-    updates_per_batch: int = 16
-    batch_size: int = 512
-    buffer_size: int = 1_000_000
-    #: Uniform random actions before the policy acts (and before the first update).
-    init_random_frames: int = 20_000
-    actor_lr: float = 3e-4
-    critic_lr: float = 3e-4
     alpha_lr: float = 3e-4
-    gamma: float = 0.99
-    #: Polyak factor of the target critics (target <- (1 - tau) target + tau online).
-    tau: float = 0.005
     alpha_init: float = 0.1
-    #: Hidden layers and activation of the critics (the actor uses ``cells`` / ``activation``).
-    critic_cells: tuple[int, ...] = (256, 256)
-    critic_activation: str = "relu"
 
 
-DEFAULTS: dict[str, dict] = {
-    "altitude": {"num_envs": 64, "frames": 2_000_000, "episode_seconds": 20.0, "reward_scale": 0.1,
-                 "cells": (256, 256), "activation": "relu"},
-    "attitude": {"num_envs": 64, "frames": 2_000_000, "reward_scale": 0.1, "cells": (256, 256),
-                 "activation": "relu"},
-}
+DEFAULTS = OFF_POLICY_DEFAULTS
 
 
 def make_config(task: str = "altitude", **overrides) -> SACConfig:

@@ -24,8 +24,10 @@ from torchrl.modules import AdditiveGaussianModule, ValueOperator
 from torchrl.objectives import SoftUpdate, TD3Loss
 
 from .common import (
+    OFF_POLICY_DEFAULTS,
+    TRANSITION,
+    OffPolicyConfig,
     QNet,
-    TrainConfig,
     config_from,
     make_actor_net,
     make_train_env,
@@ -33,40 +35,22 @@ from .common import (
     stagger_episodes,
 )
 from .runner import TrainingRun
-from .sac import TRANSITION
 
 
 @dataclass
-class TD3Config(TrainConfig):
-    """TD3 hyper-parameters (on top of :class:`TrainConfig`)."""
+class TD3Config(OffPolicyConfig):
+    """TD3 hyper-parameters (on top of :class:`OffPolicyConfig`)."""
 
-    #: Steps per env per iteration; a batch holds num_envs x rollout_steps frames.
-    rollout_steps: int = 8
-    #: Critic steps per collected batch; the actor and targets step every ``policy_delay``.
-    updates_per_batch: int = 16
+    #: The actor and the targets step every ``policy_delay`` critic steps.
     policy_delay: int = 2
-    batch_size: int = 512
-    buffer_size: int = 1_000_000
-    init_random_frames: int = 20_000
-    actor_lr: float = 3e-4
-    critic_lr: float = 3e-4
-    gamma: float = 0.99
-    tau: float = 0.005
     #: Std of the Gaussian exploration noise on the [-1, 1] actions.
     exploration_noise: float = 0.1
     #: Target-policy smoothing noise std and its clip.
     policy_noise: float = 0.2
     noise_clip: float = 0.5
-    critic_cells: tuple[int, ...] = (256, 256)
-    critic_activation: str = "relu"
 
 
-DEFAULTS: dict[str, dict] = {
-    "altitude": {"num_envs": 64, "frames": 2_000_000, "episode_seconds": 20.0, "reward_scale": 0.1,
-                 "cells": (256, 256), "activation": "relu"},
-    "attitude": {"num_envs": 64, "frames": 2_000_000, "reward_scale": 0.1, "cells": (256, 256),
-                 "activation": "relu"},
-}
+DEFAULTS = OFF_POLICY_DEFAULTS
 
 
 def make_config(task: str = "altitude", **overrides) -> TD3Config:
