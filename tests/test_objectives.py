@@ -11,7 +11,7 @@ import torch
 import falcon_rl
 from falcon_rl.cli import main
 from falcon_rl.objectives import algorithm, load_policy
-from falcon_rl.objectives.checkpoint import atomic_save, load_checkpoint
+from falcon_rl.objectives.checkpoint import atomic_save, load_checkpoint, load_replay, replay_state
 from falcon_rl.objectives.common import RunningNorm
 from falcon_rl.objectives.export import read_policy
 from falcon_rl.policies import available, shipped_policy
@@ -55,6 +55,52 @@ def test_resume_restores_weights_and_rng(tmp_path):
     doc = torch.load(tmp_path / "ppo" / "checkpoint.pt", weights_only=True)
     assert set(doc["modules"]) == {"actor", "critic"} and "optimizer" in doc["optimizers"]
     assert {"torch", "env", "sim"} <= set(doc["rng"]) and doc["norm"]["count"] > 0
+
+
+@pytest.mark.parametrize("name", ["sac", "td3"])
+def test_resume_restores_the_replay_buffer(name, tmp_path):
+    recipe, cfg = tiny(name, tmp_path, frames=128)
+    recipe.train(cfg)
+    first = load_checkpoint(tmp_path / name / "checkpoint.pt")["replay"]
+    assert first["size"] == 128 and first["data"]["observation"].shape[0] == 128
+    cfg.resume, cfg.frames = True, 256
+    recipe.train(cfg)
+    second = load_checkpoint(tmp_path / name / "checkpoint.pt")["replay"]
+    assert second["size"] == 256  # the saved 128 transitions came back, then 128 new ones
+    for key in ("observation", "action", ("next", "reward"), ("next", "observation")):
+        key = key if isinstance(key, tuple) else (key,)
+        old, new = first["data"], second["data"]
+        for part in key:
+            old, new = old[part], new[part]
+        assert torch.equal(new[:128], old)
+        assert not torch.equal(new[128:], old)
+
+
+def test_replay_round_trip_keeps_the_writer_cursor():
+    from tensordict import TensorDict
+    from torchrl.data import LazyTensorStorage, ReplayBuffer
+
+    def make():
+        return ReplayBuffer(storage=LazyTensorStorage(10), batch_size=4)
+
+    rb = make()
+    rb.extend(TensorDict({"x": torch.arange(13.0)}, [13]))  # wrapped: slots 0-2 hold 10-12
+    state = torch.load(_saved(replay_state(rb)), weights_only=True)
+    copy = make()
+    assert load_replay(copy, state) == 10
+    assert torch.equal(copy[:]["x"], rb[:]["x"])
+    for buffer in (rb, copy):
+        buffer.extend(TensorDict({"x": torch.tensor([99.0])}, [1]))
+    assert torch.equal(copy[:]["x"], rb[:]["x"]) and copy[:]["x"][3] == 99.0
+
+
+def _saved(obj):
+    import io
+
+    buf = io.BytesIO()
+    torch.save(obj, buf)
+    buf.seek(0)
+    return buf
 
 
 def test_atomic_save_leaves_no_partial_file(tmp_path, monkeypatch):
@@ -106,6 +152,22 @@ def test_train_cli_json(tmp_path, capsys):
     assert {"policy", "torchscript", "checkpoint", "config", "wall_seconds", "iterations"} <= set(doc)
     assert doc["config"]["num_envs"] == 8
     assert main(["train", "ppo", "--envs", "0"]) == 2
+
+
+def test_tensorboard_logger_writes_events_or_says_what_is_missing(tmp_path):
+    import importlib.util
+
+    from falcon_rl.objectives.logging import log_scalars, make_logger
+
+    if importlib.util.find_spec("tensorboard") is None:
+        with pytest.raises(ImportError, match="pip install tensorboard"):
+            make_logger("tensorboard", tmp_path, "run")
+        assert main(["train", "ppo", "--logger", "tensorboard", "--out", str(tmp_path / "cli")]) == 2
+        pytest.skip("tensorboard is not installed (the clear error is checked)")
+    logger = make_logger("tensorboard", tmp_path, "run", {"seed": 0})
+    log_scalars(logger, {"train/return": 1.0}, step=1)
+    logger.experiment.flush()
+    assert list((tmp_path / "logs").rglob("events.out.tfevents.*"))
 
 
 @pytest.mark.parametrize("stem", available())

@@ -10,6 +10,7 @@ Writes ``checkpoint.pt`` (resumable), ``policy.pt`` (for ``falcon-rl eval --cont
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import math
 
 from ..cli import UsageError, emit
@@ -43,6 +44,9 @@ def run(args: argparse.Namespace) -> int:
         value = getattr(args, name)
         if value is not None and value < (0 if name == "eval_episodes" else 1):
             raise UsageError(f"--{name.replace('_', '-')} must be positive, got {value}")
+    if args.logger in ("tensorboard", "wandb") and importlib.util.find_spec(args.logger) is None:
+        raise UsageError(f"--logger {args.logger} needs the {args.logger} package "
+                         f"(pip install {args.logger})")
     recipe = algorithm(args.algorithm)
     out = args.out or f"runs/{args.algorithm}_{args.task}_{args.airframe}"
     cfg = recipe.make_config(args.task, airframe=args.airframe, num_envs=args.envs, frames=args.frames,

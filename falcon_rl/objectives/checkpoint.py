@@ -5,7 +5,11 @@ with ``torch.load(path, weights_only=True)``:
 
     {"format": 1, "algorithm": str, "config": dict, "counters": dict,
      "modules": {name: state_dict}, "optimizers": {name: state_dict}, "norm": {stat: tensor},
-     "rng": {"torch": ByteTensor, "env": ByteTensor, "sim": ByteTensor, ...}}
+     "rng": {"torch": ByteTensor, "env": ByteTensor, "sim": ByteTensor, ...},
+     "replay": {"size": int, "data": {key: tensor [size, ...]}, "writer": {...}}}   (SAC, TD3)
+
+The replay entry holds the filled part of an off-policy run's replay buffer (nested dicts of tensors)
+and its writer's cursor, so a resumed run samples from the same transitions it would have.
 
 Files are written to ``<path>.tmp`` and moved over ``path`` with ``os.replace`` (atomic on POSIX), so
 a run killed mid-write leaves the previous checkpoint intact and no partial file under ``path``.
@@ -18,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 import torch
+from tensordict import TensorDict
 
 FORMAT = 1
 
@@ -68,13 +73,39 @@ def set_rng_states(states: dict[str, torch.Tensor], env=None) -> None:
 
 def save_checkpoint(path: str | Path, *, algorithm: str, config: dict, counters: dict,
                     modules: dict[str, torch.nn.Module], optimizers: dict[str, torch.optim.Optimizer],
-                    norm: dict[str, torch.Tensor], env=None, extra: dict | None = None) -> Path:
-    """Write a resumable checkpoint atomically (see the module docstring for the layout)."""
+                    norm: dict[str, torch.Tensor], env=None, extra: dict | None = None,
+                    replay=None) -> Path:
+    """Write a resumable checkpoint atomically (see the module docstring for the layout);
+    ``replay`` is the run's replay buffer (None for on-policy runs)."""
     doc = {"format": FORMAT, "algorithm": algorithm, "config": config, "counters": counters,
            "modules": {k: m.state_dict() for k, m in modules.items()},
            "optimizers": {k: o.state_dict() for k, o in optimizers.items()},
            "norm": norm, "rng": rng_states(env), "extra": extra or {}}
+    if replay is not None:
+        doc["replay"] = replay_state(replay)
     return atomic_save(doc, path)
+
+
+def replay_state(buffer) -> dict:
+    """The filled part of a TorchRL ``ReplayBuffer`` as plain tensors, and its writer's state."""
+    size = len(buffer)
+    data = buffer[:size].to("cpu").to_dict() if size else {}
+    return {"size": size, "data": data, "writer": dict(buffer.writer.state_dict())}
+
+
+def load_replay(buffer, state: dict) -> int:
+    """Refill an empty ``buffer`` from :func:`replay_state`'s output; returns its length.
+
+    The transitions go back to the same storage slots (0..size-1, in order) and the writer continues
+    from its saved cursor, so a full, wrapped-around buffer overwrites the same oldest entries.
+    """
+    if len(buffer):
+        raise ValueError("load_replay needs an empty replay buffer")
+    size = int(state["size"])
+    if size:
+        buffer.extend(TensorDict.from_dict(state["data"], batch_size=[size]))
+    buffer.writer.load_state_dict(state["writer"])
+    return len(buffer)
 
 
 def load_checkpoint(path: str | Path, map_location: str | torch.device = "cpu") -> dict:
@@ -98,4 +129,5 @@ def restore(doc: dict, modules: dict[str, torch.nn.Module], optimizers: dict[str
     return doc["counters"]
 
 
-__all__ = ["atomic_save", "load_checkpoint", "restore", "rng_states", "save_checkpoint", "set_rng_states"]
+__all__ = ["atomic_save", "load_checkpoint", "load_replay", "replay_state", "restore", "rng_states",
+           "save_checkpoint", "set_rng_states"]

@@ -10,6 +10,7 @@ unless ``WANDB_MODE`` says otherwise, so it works with no network.
 
 from __future__ import annotations
 
+import importlib.util
 import math
 import os
 from pathlib import Path
@@ -25,6 +26,10 @@ def make_logger(kind: str, out: str | Path | None, exp_name: str, config: dict |
         raise ValueError(f"logger must be one of {LOGGERS}, got {kind!r}")
     if kind == "none" or out is None:
         return None
+    missing = {"tensorboard": "tensorboard", "wandb": "wandb"}.get(kind)
+    if missing and importlib.util.find_spec(missing) is None:
+        raise ImportError(f"the {kind} logger needs the {missing} package (pip install {missing}); "
+                          "or use --logger csv")
     log_dir = Path(out) / "logs"
     if kind == "csv":
         from torchrl.record.loggers.csv import CSVLogger

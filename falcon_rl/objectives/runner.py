@@ -1,7 +1,7 @@
 """The bookkeeping around a recipe's loop: resume, counters, logs, progress bar, periodic
 checkpoints and evaluations, and the final policy export.
 
-    run = TrainingRun("ppo", cfg, env, actor_net, modules, optimizers)
+    run = TrainingRun("ppo", cfg, env, actor_net, modules, optimizers)   # replay=buffer (SAC, TD3)
     run.start()                                    # seeds, or restores a checkpoint with --resume
     for batch in collector:                        # collector of run.remaining_frames()
         ...learn...
@@ -18,7 +18,7 @@ from pathlib import Path
 
 import torch
 
-from .checkpoint import load_checkpoint, restore, save_checkpoint
+from .checkpoint import load_checkpoint, load_replay, restore, save_checkpoint
 from .common import Counters, EpisodeStats, PolicyNet, TrainConfig, set_threads
 from .evaluate import eval_scalars, evaluate
 from .export import export_torchscript, save_policy
@@ -26,12 +26,16 @@ from .logging import Progress, log_scalars, make_logger
 
 
 class TrainingRun:
-    """Counters, logs, checkpoints and evaluations of one training run (see the module docstring)."""
+    """Counters, logs, checkpoints and evaluations of one training run (see the module docstring).
+
+    ``replay``: the off-policy run's replay buffer, saved in every checkpoint and refilled on resume.
+    """
 
     def __init__(self, algorithm: str, cfg: TrainConfig, env, actor: PolicyNet,
-                 modules: dict[str, torch.nn.Module], optimizers: dict[str, torch.optim.Optimizer]):
+                 modules: dict[str, torch.nn.Module], optimizers: dict[str, torch.optim.Optimizer],
+                 replay=None):
         self.algorithm, self.cfg, self.env, self.actor = algorithm, cfg, env, actor
-        self.modules, self.optimizers = modules, optimizers
+        self.modules, self.optimizers, self.replay = modules, optimizers, replay
         self.out = None if cfg.out is None else Path(cfg.out)
         self.counters = Counters()
         self.name = f"{algorithm}_{cfg.task}_{cfg.airframe}"
@@ -52,6 +56,8 @@ class TrainingRun:
             doc = load_checkpoint(path, self.cfg.device)
             counters = restore(doc, self.modules, self.optimizers, self.actor.norm, self.env)
             self.counters = Counters(**counters)
+            if self.replay is not None and "replay" in doc:
+                load_replay(self.replay, doc["replay"])
         self.logger = make_logger(self.cfg.logger, self.out, self.name, self.cfg.to_dict())
         self.stats = EpisodeStats(frames_at_start=self.counters.frames)
         self.progress = Progress(self.cfg.frames, self.counters.frames, self.name, self.cfg.progress)
@@ -68,7 +74,8 @@ class TrainingRun:
         self.counters.last_checkpoint_frames = self.counters.frames
         return save_checkpoint(self.checkpoint_path, algorithm=self.algorithm, config=self.cfg.to_dict(),
                                counters=dataclasses.asdict(self.counters), modules=self.modules,
-                               optimizers=self.optimizers, norm=self.actor.norm.stats(), env=self.env)
+                               optimizers=self.optimizers, norm=self.actor.norm.stats(), env=self.env,
+                               replay=self.replay)
 
     # ------------------------------------------------------------------ per batch
     def after_batch(self, batch, scalars: dict[str, float]) -> None:

@@ -7,8 +7,8 @@ on TorchRL.
 One iteration: the Collector rolls ``rollout_steps`` steps of all ``num_envs`` envs with Gaussian
 exploration noise (random actions for the first ``init_random_frames``) into a replay buffer with
 on-device storage; then ``updates_per_batch`` critic steps on sampled minibatches (TD3Loss), an
-actor step and Polyak target update every ``policy_delay`` of them. The replay buffer is not
-checkpointed: a resumed run refills it before learning again.
+actor step and Polyak target update every ``policy_delay`` of them. The replay buffer is saved in
+every checkpoint: a resumed run samples from the same transitions and goes on learning at once.
 """
 
 from __future__ import annotations
@@ -79,11 +79,12 @@ def train(cfg: TD3Config) -> dict:
     buffer = ReplayBuffer(storage=LazyTensorStorage(cfg.buffer_size, device=cfg.device),
                           batch_size=cfg.batch_size)
 
-    run = TrainingRun("td3", cfg, env, actor_net, {"actor": actor_net, "loss": loss}, optimizers)
+    run = TrainingRun("td3", cfg, env, actor_net, {"actor": actor_net, "loss": loss}, optimizers,
+                      replay=buffer)
     counters = run.start()
     batch_frames = cfg.num_envs * cfg.rollout_steps
     iterations = -(-run.remaining_frames() // batch_frames)
-    fresh = counters.frames == 0  # a resumed run refills the buffer with its policy, not random actions
+    fresh = counters.frames == 0  # a resumed run has its buffer back (or refills it with its policy)
     learn_after = cfg.init_random_frames if fresh else cfg.batch_size
     collector = Collector(env, explore, frames_per_batch=batch_frames, total_frames=iterations * batch_frames,
                           init_random_frames=cfg.init_random_frames if fresh else 0, device=cfg.device,
