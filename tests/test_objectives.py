@@ -154,6 +154,18 @@ def test_train_cli_json(tmp_path, capsys):
     assert main(["train", "ppo", "--envs", "0"]) == 2
 
 
+def test_train_cli_set_overrides_recipe_fields():
+    from falcon_rl.commands.train import parse_overrides
+
+    parsed = parse_overrides(["batch_size=512", "cells=[32, 32]", "activation=tanh",
+                              'env_options={"decimation": 5}'])
+    assert parsed == {"batch_size": 512, "cells": (32, 32), "activation": "tanh",
+                      "env_options": {"decimation": 5}}
+    assert algorithm("td3").make_config("altitude", **parsed).cells == (32, 32)
+    assert main(["train", "td3", "--set", "no_such_field=1"]) == 2
+    assert main(["train", "td3", "--set", "batch_size"]) == 2
+
+
 def test_tensorboard_logger_writes_events_or_says_what_is_missing(tmp_path):
     import importlib.util
 

@@ -10,6 +10,7 @@ Writes ``checkpoint.pt`` (resumable), ``policy.pt`` (for ``falcon-rl eval --cont
 from __future__ import annotations
 
 import argparse
+import ast
 import importlib.util
 import math
 
@@ -35,6 +36,33 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--eval-episodes", type=int, default=None, help="episodes of the final evaluation")
     parser.add_argument("--threads", type=int, default=None, help="torch CPU threads (default 1)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE",
+                        help="override a recipe field (Python literal), e.g. --set batch_size=512 "
+                             "--set 'env_options={\"decimation\": 5}'; repeatable")
+
+
+def parse_overrides(items: list[str]) -> dict:
+    """``["field=value", ...]`` -> {field: literal value} (a bare word stays a string)."""
+    overrides = {}
+    for item in items:
+        name, sep, text = item.partition("=")
+        if not sep or not name.strip():
+            raise UsageError(f"--set takes FIELD=VALUE, got {item!r}")
+        try:
+            value = ast.literal_eval(text)
+        except (ValueError, SyntaxError):
+            value = text
+        overrides[name.strip()] = tuple(value) if isinstance(value, list) else value
+    return overrides
+
+
+def _config(recipe, args: argparse.Namespace, out: str, overrides: dict):
+    """The recipe's config for the task: its defaults, the flags, then the ``--set`` fields."""
+    flags = {"airframe": args.airframe, "num_envs": args.envs, "frames": args.frames, "device": args.device,
+             "backend": args.backend, "seed": args.seed, "out": out, "resume": args.resume,
+             "logger": args.logger, "eval_every": args.eval_every, "final_eval_episodes": args.eval_episodes,
+             "threads": args.threads, "progress": not args.no_progress and not args.json}
+    return recipe.make_config(args.task, **{**flags, **overrides})
 
 
 def run(args: argparse.Namespace) -> int:
@@ -49,11 +77,11 @@ def run(args: argparse.Namespace) -> int:
                          f"(pip install {args.logger})")
     recipe = algorithm(args.algorithm)
     out = args.out or f"runs/{args.algorithm}_{args.task}_{args.airframe}"
-    cfg = recipe.make_config(args.task, airframe=args.airframe, num_envs=args.envs, frames=args.frames,
-                             device=args.device, backend=args.backend, seed=args.seed, out=out,
-                             resume=args.resume, logger=args.logger, eval_every=args.eval_every,
-                             final_eval_episodes=args.eval_episodes, threads=args.threads,
-                             progress=not args.no_progress and not args.json)
+    overrides = parse_overrides(args.set)
+    try:
+        cfg = _config(recipe, args, out, overrides)
+    except TypeError as exc:  # an unknown --set field
+        raise UsageError(str(exc)) from exc
     summary = recipe.train(cfg)
     summary["config"] = cfg.to_dict()
     lines = [f"{args.algorithm} on {args.task} / {args.airframe}: {summary['frames']:,} frames in "
