@@ -11,6 +11,7 @@ from falcon_rl import load_airframe, make_env
 from falcon_rl.baselines.linear_models import climb_rate_row, linear_model
 from falcon_rl.baselines.lqr import AltitudeLQR, altitude_schedule, attitude_schedule
 from falcon_rl.baselines.mppi import MPPI, MPPIConfig
+from falcon_rl.physics import state as S
 
 
 def _closest(eigs: np.ndarray, target: complex) -> complex:
@@ -128,3 +129,18 @@ def test_mppi_climbs_towards_the_target():
     error = (rollout["next", "state", "height"] - rollout["next", "task", "target_altitude"]).abs()
     assert (error[:, 0] - error[:, -1] > 0.5 * 2.5 * 3.0 * 0.5).all()  # half the ramp's 7.5 m at least
     assert len(policy.planning_cpu_seconds) == len(policy.planning_seconds) == 30
+
+
+def test_mppi_attitude_cost_penalises_sideslip():
+    env = make_env("attitude", "volantex_ranger", num_envs=1, seed=0, maneuver="circle")
+    policy = MPPI(env, MPPIConfig(samples=2, horizon_seconds=1.0))
+    speed, beta = env.task.trim_airspeed, np.radians(4.0)
+    x = policy.planner.x.clone()  # [2, S]: wings level at 100 m, no rates
+    x[:, S.POSITION] = torch.tensor([0.0, 0.0, -100.0])
+    x[:, S.QUATERNION] = torch.tensor([1.0, 0.0, 0.0, 0.0])
+    x[:, S.ANGULAR_RATE] = 0.0
+    x[0, S.VELOCITY] = torch.tensor([speed, 0.0, 0.0])
+    x[1, S.VELOCITY] = torch.tensor([speed * np.cos(beta), speed * np.sin(beta), 0.0])  # 4 deg slip
+    ref = {"bank": torch.zeros(2), "climb": torch.zeros(2), "airspeed": torch.full((2,), speed)}
+    cost = policy._step_cost(x, ref)
+    assert float(cost[1] - cost[0]) == pytest.approx((4.0 / 2.0) ** 2, rel=1e-3)

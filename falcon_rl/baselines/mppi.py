@@ -15,8 +15,8 @@ Altitude cost per planning step (tau ahead), with the reference ramp extrapolate
 
 The vertical-speed term and a horizon several times the climb transient are what let the planner
 stop at the target instead of flying through it. The attitude cost scores bank, climb-rate and
-airspeed errors against the maneuver's command stream read ahead over the horizon (the current
-commands held, for streams that are not known in advance).
+airspeed errors and the sideslip (coordinated turns) against the maneuver's command stream read
+ahead over the horizon (the current commands held, for streams that are not known in advance).
 
 Tuning notes. The sampling noise must stay small next to the commands that fly the airframe: with
 (0.03, 0.05, 0.05, 0.15) the Navion (53 m/s, 3 s throttle lag) drifted up to 3 m off its target
@@ -59,6 +59,8 @@ class MPPIConfig:
     airspeed_scale: float = 1.0
     pitch_rate_scale: float = 0.5
     bank_scale: float = math.radians(3.0)
+    #: Sideslip (attitude task): keeps the turns coordinated; without it the rudder wanders.
+    sideslip_scale: float = math.radians(2.0)
     smoothness_scale: float = 0.3
     #: Control effort: deviation of the commands from trim, normalised units.
     effort_scale: float = 0.25
@@ -139,6 +141,8 @@ class MPPI(TensorDictModuleBase):
         else:
             roll = torch.atan2(2 * (w * qx + qy * qz), 1 - 2 * (qx * qx + qy * qy))
             cost = cost + ((roll - ref["bank"]) / cfg.bank_scale) ** 2
+            sideslip = torch.asin((v / airspeed.clamp_min(1e-3)).clamp(-1.0, 1.0))
+            cost = cost + (sideslip / cfg.sideslip_scale) ** 2
         unsafe = ((alpha.abs() - self.alpha_limit).clamp_min(0.0) * 10.0
                   + (1.2 * self.stall_speed - airspeed).clamp_min(0.0) + (1.0 - height).clamp_min(0.0))
         return cost + cfg.penalty * unsafe
