@@ -144,3 +144,14 @@ def test_mppi_attitude_cost_penalises_sideslip():
     ref = {"bank": torch.zeros(2), "climb": torch.zeros(2), "airspeed": torch.full((2,), speed)}
     cost = policy._step_cost(x, ref)
     assert float(cost[1] - cost[0]) == pytest.approx((4.0 / 2.0) ** 2, rel=1e-3)
+
+
+def test_mppi_weights_ignore_diverged_samples():
+    from falcon_rl.baselines.mppi import mppi_weights
+
+    cost = torch.tensor([[1.0, 2.0, float("nan"), 3.0], [float("inf"), 5.0, 5.0, 5.0]])
+    weights = mppi_weights(cost, temperature=0.2)
+    assert torch.isfinite(weights).all() and torch.allclose(weights.sum(dim=1), torch.ones(2))
+    assert weights[0, 2] == 0 and weights[1, 0] == 0
+    assert weights[0, 0] > weights[0, 1] > weights[0, 3]  # cheaper rollouts weigh more
+    assert torch.allclose(weights[1, 1:], torch.full((3,), 1 / 3))

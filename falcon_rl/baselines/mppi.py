@@ -67,6 +67,8 @@ class MPPIConfig:
     #: Spacing of the noise knots (the noise is linear between them), s.
     noise_knot_seconds: float = 0.25
     penalty: float = 1e3
+    #: RK4 substeps keep |lambda| dt of the fastest cruise mode below this (2.79 is RK4's limit).
+    stability_margin: float = 2.0
     seed: int = 0
 
 
@@ -94,7 +96,7 @@ class MPPI(TensorDictModuleBase):
                              f"steps of plan_dt ({cfg.plan_dt})")
         self.shift = self.replan_every // self.plan_hold
         backend = "warp" if env.config.backend == "warp" else "torch"
-        self.substeps = stable_substeps(env.sim.airframe, cfg.plan_dt)
+        self.substeps = stable_substeps(env.sim.airframe, cfg.plan_dt, cfg.stability_margin)
         self.planner = Simulator(env.sim.airframe, self.n * self.k, backend=backend, device=env.device,
                                  dt=cfg.plan_dt / self.substeps, ground_effect=env.config.ground_effect,
                                  dtype=env.sim.dtype, check_inputs=False)
@@ -195,10 +197,7 @@ class MPPI(TensorDictModuleBase):
             cost += ((flat[:, j] - previous) ** 2).sum(-1) / cfg.smoothness_scale**2
             cost += ((flat[:, j] - trim) ** 2).sum(-1) / cfg.effort_scale**2
             previous = flat[:, j]
-        cost = cost.reshape(n, k)
-        best = cost.min(dim=1, keepdim=True).values
-        spread = (cost.mean(dim=1, keepdim=True) - best).clamp_min(1e-9)
-        weights = torch.softmax(-(cost - best) / (cfg.temperature * spread), dim=1)
+        weights = mppi_weights(cost.reshape(n, k), cfg.temperature)
         new_plan = (weights[:, :, None, None] * candidates).sum(dim=1)
         self.plan = torch.where(rows[:, None, None], new_plan, self.plan)
         self.planning_seconds.append(time.perf_counter() - t0)
@@ -229,6 +228,18 @@ class MPPI(TensorDictModuleBase):
         self.counter += 1
         td.set("action", action.clone())
         return td
+
+
+def mppi_weights(cost: torch.Tensor, temperature: float) -> torch.Tensor:
+    """Sample weights [N, K] from rollout costs [N, K]: exp(-(c - c_min) / (temperature (c_mean - c_min))),
+    normalised per row. Rollouts whose cost is not finite (a diverged sample) get weight 0."""
+    finite = torch.isfinite(cost)
+    safe = torch.where(finite, cost, torch.zeros_like(cost))
+    best = torch.where(finite, safe, math.inf).min(dim=1, keepdim=True).values
+    mean = safe.sum(dim=1, keepdim=True) / finite.sum(dim=1, keepdim=True).clamp_min(1)
+    spread = (mean - best).clamp_min(1e-9)
+    logits = torch.where(finite, -(safe - best) / (temperature * spread), -math.inf)
+    return torch.softmax(logits, dim=1)
 
 
 def stable_substeps(airframe, plan_dt: float, margin: float = 2.0) -> int:
