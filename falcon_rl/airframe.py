@@ -15,6 +15,8 @@ from typing import Any
 
 import numpy as np
 
+#: Largest power of one variable in an aero monomial (the Warp twin tabulates powers 0..6).
+MAX_EXPONENT = 6
 #: Aero model variables, in the order of the monomial exponent columns.
 AERO_VARIABLES: tuple[str, ...] = ("alpha", "beta", "elevator", "aileron", "rudder")
 #: Aerodynamic coefficients, in the order of the coefficient columns.
@@ -357,8 +359,9 @@ def _parse_aero(r: _Reader, raw: dict) -> AeroModel:
             powers = []
             for var in AERO_VARIABLES:
                 p = r.get(term, var, twhere, int, 0)
-                if not 0 <= p <= 6:
-                    raise r.fail(f"{twhere}.{var}", f"exponent must be an integer in [0, 6], got {p}")
+                if not 0 <= p <= MAX_EXPONENT:
+                    raise r.fail(f"{twhere}.{var}",
+                                 f"exponent must be an integer in [0, {MAX_EXPONENT}], got {p}")
                 powers.append(p)
             row = monomials.setdefault(tuple(powers), np.zeros(len(AERO_COEFFICIENTS)))
             row[k] += coef

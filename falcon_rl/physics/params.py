@@ -11,7 +11,7 @@ from dataclasses import dataclass, fields
 import torch
 
 from ..airframe import SURFACES, Airframe
-from ._warp import warp_struct, wp
+from ._warp import vector_type, warp_struct, wp
 from .ground_effect import ground_effect_mode
 
 
@@ -138,6 +138,9 @@ def build_params(
 
 
 # ---------------------------------------------------------------------------------------- warp twin
+Vec6 = vector_type(6)  # one aero-table row (CL, CD, CY, Cl, Cm, Cn)
+
+
 @warp_struct
 class WarpParams:
     """Warp views of :class:`ModelParams` (zero-copy, same memory; shapes as in ModelParams).
@@ -158,7 +161,7 @@ class WarpParams:
     taper_ratio: wp.array(dtype=wp.float32)
     oswald: wp.array(dtype=wp.float32)
     wing_quarter_chord: wp.array(dtype=wp.vec3)
-    aero_coefficients: wp.array3d(dtype=wp.float32)
+    aero_coefficients: wp.array2d(dtype=Vec6)  # [N, T] rows (CL, CD, CY, Cl, Cm, Cn)
     aero_rates: wp.array3d(dtype=wp.float32)
     alpha_range: wp.array(dtype=wp.vec2)
     beta_range: wp.array(dtype=wp.vec2)
@@ -184,6 +187,7 @@ class WarpParams:
 
 
 _WARP_VECTOR_FIELDS = {
+    "aero_coefficients": "Vec6",
     "inertia": "mat33", "inertia_inv": "mat33", "wing_quarter_chord": "vec3", "alpha_range": "vec2",
     "beta_range": "vec2", "motor_position": "vec3", "motor_axis": "vec3",
     "actuator_time_constant": "vec3", "actuator_natural_frequency": "vec3", "actuator_damping": "vec3",
@@ -200,7 +204,8 @@ def bind_warp_params(p: ModelParams) -> WarpParams:
             raise TypeError(f"the warp backend runs in float32; {f.name} is {tensor.dtype}")
         if not tensor.is_contiguous():
             raise ValueError(f"parameter {f.name} must be contiguous to be bound zero-copy")
-        dtype = getattr(wp, _WARP_VECTOR_FIELDS[f.name]) if f.name in _WARP_VECTOR_FIELDS else None
+        name = _WARP_VECTOR_FIELDS.get(f.name)
+        dtype = None if name is None else (Vec6 if name == "Vec6" else getattr(wp, name))
         setattr(out, f.name, wp.from_torch(tensor, dtype=dtype))
     out.num_terms = int(p.aero_exponents.shape[0])
     out.num_motors = int(p.motor_spin.shape[1])

@@ -8,12 +8,19 @@ randomisation through ``ModelParams.assign``) are seen by the next launch. Repla
 single parameter tensor re-binds at the next reset (or call :meth:`WarpEngine.rebind`), which keeps
 that 30-tensor check off the per-step path.
 On CUDA the launch is queued on torch's current stream, so no synchronisation is needed.
+On the CPU a Warp kernel runs serially on one core; batches of at least ``2 * MIN_ENVS_PER_THREAD``
+envs are split into contiguous slices, one launch per slice, stepped by parallel threads (a CPU
+launch is a ctypes call, which releases the GIL). ``Simulator(warp_cpu_threads=...)`` overrides the
+default of one slice per available core.
 With turbulence on, the kernel also advances the Dryden filters (``sim.turbulence``); the step
 counter of its noise streams is a device tensor bumped by torch before each launch.
 """
 
 from __future__ import annotations
 
+import itertools
+import os
+from concurrent.futures import ThreadPoolExecutor
 from typing import TYPE_CHECKING, Any
 
 import torch
@@ -24,6 +31,39 @@ from .state import WARP_MAX_MOTORS
 
 if TYPE_CHECKING:
     from .simulator import Simulator
+
+
+#: Smallest CPU slice worth a thread of its own (below it the thread hand-off costs more than it saves).
+MIN_ENVS_PER_THREAD = 512
+
+_POOL: ThreadPoolExecutor | None = None
+
+
+def available_cores() -> int:
+    """CPU cores this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not Linux
+        return os.cpu_count() or 1
+
+
+def cpu_slices(num_envs: int, threads: int | None) -> list[tuple[int, int]]:
+    """(offset, count) slices of a CPU batch, one per thread. ``threads`` None: one per available
+    core, each slice at least :data:`MIN_ENVS_PER_THREAD` envs."""
+    if threads is None:
+        threads = min(available_cores(), num_envs // MIN_ENVS_PER_THREAD)
+    threads = max(1, min(threads, num_envs))
+    bounds = [num_envs * k // threads for k in range(threads + 1)]
+    return [(lo, hi - lo) for lo, hi in itertools.pairwise(bounds)]
+
+
+def _pool() -> ThreadPoolExecutor:
+    """Process-wide worker threads for the CPU slices (created on first use)."""
+    global _POOL
+    if _POOL is None:
+        _POOL = ThreadPoolExecutor(max_workers=max(1, available_cores() - 1),
+                                   thread_name_prefix="falcon-warp")
+    return _POOL
 
 
 def warp_device(device: torch.device) -> str:
@@ -54,7 +94,10 @@ class WarpEngine:
         self.device = warp_device(sim.device)
         self._is_cuda = sim.device.type == "cuda"
         self._key: tuple[Any, ...] = ()
-        self._launch: Any = None
+        self._launches: list[Any] = []
+        self._stream: Any = None
+        slices = [(0, sim.num_envs)] if self._is_cuda else cpu_slices(sim.num_envs, sim.warp_cpu_threads)
+        self.slices = slices
         self.rebind()
 
     def _binding_key(self) -> tuple[Any, ...]:
@@ -103,8 +146,11 @@ class WarpEngine:
             self._kernels.INTEGRATOR_CODES[sim.integrator],
             *self._turbulence_inputs(),
         ]
-        self._launch = wp.launch(self._kernels.step_kernel, dim=sim.num_envs, inputs=inputs,
-                                 device=self.device, record_cmd=True)
+        self._launches = [wp.launch(self._kernels.step_kernel, dim=count, inputs=[*inputs, offset],
+                                    device=self.device, record_cmd=True)
+                          for offset, count in self.slices]
+        if self._is_cuda:
+            self._stream = wp.stream_from_torch(self.sim.device)
         self._key = self._binding_key()
 
     def step(self) -> None:
@@ -115,9 +161,16 @@ class WarpEngine:
         if turb is not None and not turb.external_noise:
             turb.rng[1] += 1
         if self._is_cuda:
-            self._launch.launch(stream=self._wp.stream_from_torch(self.sim.device))
+            if torch.cuda.current_stream(self.sim.device).cuda_stream != self._stream.cuda_stream:
+                self._stream = self._wp.stream_from_torch(self.sim.device)
+            self._launches[0].launch(stream=self._stream)
+        elif len(self._launches) == 1:
+            self._launches[0].launch()
         else:
-            self._launch.launch()
+            pending = [_pool().submit(launch.launch) for launch in self._launches[1:]]
+            self._launches[0].launch()
+            for future in pending:
+                future.result()
 
     def _params_moved(self) -> bool:
         return any(t.data_ptr() != ptr for t, ptr in zip(vars(self.sim.params).values(),

@@ -80,15 +80,17 @@ def step_kernel(
     turb_noise: wp.array2d(dtype=wp.float32),
     turb_rng: wp.array(dtype=wp.int32),
     turb_mode: int,
+    offset: int,
 ):
-    """x[i] <- project(integrate(x[i], dt)) for env i = tid, command held over the step.
+    """x[i] <- project(integrate(x[i], dt)) for env i = offset + tid, command held over the step.
 
     x: [N, S] state (in place). command: [N] normalised commands. wind_ned, gust_*: [N] air motion.
     integrator: 0 Euler, 1 classic RK4 (same stage arithmetic as ``integrators.rk4_step``).
     turb_*: Dryden state (filter [N, 8], W20 [N], noise [N, 6], rng (seed, step) [2]); with
     turb_mode != 0 the gusts are advanced first (noise from the streams or read from turb_noise).
+    offset: first env of this launch (a CPU batch is split into slices stepped by parallel threads).
     """
-    i = wp.tid()
+    i = wp.tid() + offset
     size = x.shape[1]
     s = load_state(x, i, size)
     u = command[i]
