@@ -42,9 +42,11 @@ class BenchCase:
     max_s: float = float("nan")
     env_steps_per_s: float = float("nan")
     ratio_to_jsbsim: float | None = None
+    warmup_s: float = float("nan")  # untimed warm-up (kernel load, torch.compile), seconds
     error: str | None = None
 
-    def finish(self, block_times: list[float]) -> BenchCase:
+    def finish(self, block_times: list[float], warmup_s: float = float("nan")) -> BenchCase:
+        self.warmup_s = warmup_s
         per_step = [t / self.steps for t in block_times]
         self.median_s = statistics.median(per_step)
         self.min_s, self.max_s = min(per_step), max(per_step)
@@ -54,7 +56,9 @@ class BenchCase:
 
 @dataclass
 class BenchConfig:
-    """What to time. ``backends`` in torch | warp | scipy; ``baseline`` None or "jsbsim"."""
+    """What to time. ``backends`` in torch | torch-compile | warp | scipy (``torch-compile`` is the
+    torch backend stepping through ``torch.compile``); ``baseline`` None or "jsbsim";
+    ``warp_cpu_threads`` None (one per core) or the threads of a warp batch on the CPU."""
 
     backends: list[str]
     env_counts: list[int]
@@ -68,6 +72,7 @@ class BenchConfig:
     baseline: str | None = None
     include_env: bool = True
     progress: bool = True
+    warp_cpu_threads: int | None = None
     cases: list[BenchCase] = field(default_factory=list)
 
 
@@ -77,10 +82,13 @@ def _sync(device: str) -> None:
 
 
 def _time_blocks(step: Callable[[], Any], steps: int, trials: int, warmup: int, device: str
-                 ) -> list[float]:
+                 ) -> tuple[list[float], float]:
+    """(block times of the trials, warm-up time), seconds."""
+    start = time.perf_counter()
     for _ in range(warmup):
         step()
     _sync(device)
+    warmup_s = time.perf_counter() - start
     blocks = []
     for _ in range(trials):
         _sync(device)
@@ -89,7 +97,7 @@ def _time_blocks(step: Callable[[], Any], steps: int, trials: int, warmup: int, 
             step()
         _sync(device)
         blocks.append(time.perf_counter() - start)
-    return blocks
+    return blocks, warmup_s
 
 
 def step_contents(sim: Simulator) -> str:
@@ -106,13 +114,16 @@ def step_contents(sim: Simulator) -> str:
 def time_simulator(cfg: BenchConfig, backend: str, num_envs: int) -> tuple[BenchCase, str]:
     """Time raw ``Simulator.step``; returns the case and the step description."""
     case = BenchCase("simulator", backend, cfg.device, num_envs, cfg.steps, cfg.trials)
-    sim = Simulator(cfg.airframe, num_envs=num_envs, backend=backend, device=cfg.device, dt=cfg.dt,
-                    integrator=cfg.integrator, check_inputs=False)
+    compiled = backend == "torch-compile"
+    sim = Simulator(cfg.airframe, num_envs=num_envs, backend="torch" if compiled else backend,
+                    device=cfg.device, dt=cfg.dt, integrator=cfg.integrator, check_inputs=False,
+                    warp_cpu_threads=cfg.warp_cpu_threads, compile=compiled)
     command = sim.command.clone()
     steps = cfg.steps if backend != "scipy" else max(1, cfg.steps // 10)
     case.steps = steps
-    blocks = _time_blocks(lambda: sim.step(command), steps, cfg.trials, cfg.warmup, cfg.device)
-    return case.finish(blocks), step_contents(sim)
+    blocks, warmup_s = _time_blocks(lambda: sim.step(command), steps, cfg.trials, max(cfg.warmup, 2),
+                                    cfg.device)
+    return case.finish(blocks, warmup_s), step_contents(sim)
 
 
 def time_env(cfg: BenchConfig, backend: str, num_envs: int) -> BenchCase | None:
@@ -133,11 +144,11 @@ def time_env(cfg: BenchConfig, backend: str, num_envs: int) -> BenchCase | None:
             nxt["action"] = td["action"]
             state["td"] = nxt
 
-        blocks = _time_blocks(step, cfg.steps, cfg.trials, cfg.warmup, cfg.device)
+        blocks, warmup_s = _time_blocks(step, cfg.steps, cfg.trials, cfg.warmup, cfg.device)
     except Exception as exc:  # the env is optional here: report, do not fail the bench
         case.error = f"{type(exc).__name__}: {exc}".splitlines()[0][:200]
         return case
-    return case.finish(blocks)
+    return case.finish(blocks, warmup_s)
 
 
 @contextlib.contextmanager
@@ -199,7 +210,7 @@ def run_bench(cfg: BenchConfig) -> dict[str, Any]:
         bar.set_postfix_str(f"{backend} x {n}")
         case, contents = time_simulator(cfg, backend, n)
         cfg.cases.append(case)
-        if cfg.include_env and backend != "scipy":
+        if cfg.include_env and backend in ("torch", "warp"):
             env_case = time_env(cfg, backend, n)
             if env_case is not None:
                 cfg.cases.append(env_case)
@@ -214,6 +225,7 @@ def run_bench(cfg: BenchConfig) -> dict[str, Any]:
         "integrator": cfg.integrator,
         "device": cfg.device,
         "torch_threads": torch.get_num_threads(),
+        "warp_cpu_threads": cfg.warp_cpu_threads,
         "cpu": _cpu_name(),
         "trials": cfg.trials,
         "skipped": skipped,

@@ -10,11 +10,12 @@ from ..cli import UsageError, emit
 NAME = "bench"
 HELP = "time Simulator.step (and the TorchRL env) per backend and env count, optionally vs JSBSim"
 
-_BACKENDS = ("torch", "warp", "scipy")
+_BACKENDS = ("torch", "torch-compile", "warp", "scipy")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--backend", default="torch,warp", help="comma list of torch, warp, scipy")
+    parser.add_argument("--backend", default="torch,warp",
+                        help="comma list of torch, torch-compile (torch through torch.compile), warp, scipy")
     parser.add_argument("--envs", default="1,64,1024,4096", help="comma list of env counts")
     parser.add_argument("--steps", type=int, default=100, help="steps per timed trial")
     parser.add_argument("--trials", type=int, default=5, help="timed trials per case (>= 5)")
@@ -26,6 +27,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--baseline", choices=("jsbsim",), default=None,
                         help="also time JSBSim's c172p at the same dt and print ratios to it")
     parser.add_argument("--threads", type=int, default=None, help="torch CPU threads (default: torch's)")
+    parser.add_argument("--warp-threads", type=int, default=None,
+                        help="CPU threads stepping a warp batch (default: one per core, >= 512 envs each)")
     parser.add_argument("--no-env", action="store_true", help="time Simulator.step only")
     parser.add_argument("--out", type=Path, default=None, help="write bench.json and bench.png here")
 
@@ -56,6 +59,8 @@ def _parse(args: argparse.Namespace) -> tuple[list[str], list[int]]:
         import torch
 
         torch.set_num_threads(args.threads)
+    if args.warp_threads is not None and args.warp_threads < 1:
+        raise UsageError(f"--warp-threads must be >= 1; got {args.warp_threads}")
     if args.baseline == "jsbsim":
         try:
             import jsbsim  # noqa: F401
@@ -72,7 +77,8 @@ def run(args: argparse.Namespace) -> int:
     load_airframe(args.airframe)  # fail early on a bad name
     cfg = BenchConfig(backends=backends, env_counts=envs, steps=args.steps, trials=args.trials,
                       warmup=args.warmup, device=args.device, airframe=args.airframe, dt=args.dt,
-                      integrator=args.integrator, baseline=args.baseline, include_env=not args.no_env)
+                      integrator=args.integrator, baseline=args.baseline, include_env=not args.no_env,
+                      warp_cpu_threads=args.warp_threads)
     doc = run_bench(cfg)
     text = format_table(doc)
     if args.out is not None:
