@@ -155,3 +155,18 @@ def test_mppi_weights_ignore_diverged_samples():
     assert weights[0, 2] == 0 and weights[1, 0] == 0
     assert weights[0, 0] > weights[0, 1] > weights[0, 3]  # cheaper rollouts weigh more
     assert torch.allclose(weights[1, 1:], torch.full((3,), 1 / 3))
+
+
+def test_mppi_attitude_height_profile_integrates_the_climb_commands():
+    env = make_env("attitude", "volantex_ranger", num_envs=1, seed=0, maneuver="helix")
+    policy = MPPI(env, MPPIConfig(samples=2, horizon_seconds=2.0, plan_dt=0.1))
+    td = env.reset()
+    policy.start_height.fill_(100.0)
+    table, dt = env.task.table, env.env_dt
+    td["state", "time"] = torch.full_like(td["state", "time"], 20.0)  # mid-helix: climbing
+    ref = policy._references(td)
+    for j in (0, policy.horizon - 1):
+        index = 2000 + round((j + 1) * 0.1 / dt)
+        expected = 100.0 + float(table[:index, 1].double().sum()) * dt
+        assert float(ref["height"][j, 0]) == pytest.approx(expected, abs=1e-3)
+    assert float(ref["height"][-1, 0] - ref["height"][0, 0]) > 0.5 * float(table[2000, 1]) * 1.9

@@ -59,6 +59,9 @@ class MPPIConfig:
     airspeed_scale: float = 1.0
     pitch_rate_scale: float = 0.5
     bank_scale: float = math.radians(3.0)
+    #: Attitude task: error to the height profile that the climb-rate commands integrate to, m. Without
+    #: it a small sink bias in long turns adds up (the Navion lost 100 m over a 3 min s-turn).
+    profile_height_scale: float = 2.0
     #: Sideslip (attitude task): keeps the turns coordinated; without it the rudder wanders.
     sideslip_scale: float = math.radians(2.0)
     smoothness_scale: float = 0.3
@@ -114,6 +117,14 @@ class MPPI(TensorDictModuleBase):
         self.out_keys = ["action"]
         #: The attitude maneuver's command stream [T, 3] (bank, climb rate, airspeed) when it is known.
         self.command_table: torch.Tensor | None = getattr(task, "table", None)
+        #: Height the stream's climb-rate commands ask for by each step [T] (0 at the start), and the
+        #: height of each episode's start [N]: the commanded height profile, whose error is the
+        #: integral of the climb-rate error (the LQRI's climb integrator, here a cost term).
+        self.climb_profile: torch.Tensor | None = None
+        if self.command_table is not None:
+            climbed = torch.cumsum(self.command_table[:, 1], dim=0) * env.env_dt
+            self.climb_profile = torch.cat([climbed.new_zeros(1), climbed[:-1]])
+        self.start_height = torch.zeros(self.n, device=env.device, dtype=env.sim.dtype)
         #: Wall-clock and process CPU seconds of each replan.
         self.planning_seconds: list[float] = []
         self.planning_cpu_seconds: list[float] = []
@@ -141,6 +152,8 @@ class MPPI(TensorDictModuleBase):
         if self.task_name == "altitude":
             cost = cost + ((height - ref["height"]) / cfg.altitude_scale) ** 2
         else:
+            if "height" in ref:
+                cost = cost + ((height - ref["height"]) / cfg.profile_height_scale) ** 2
             roll = torch.atan2(2 * (w * qx + qy * qz), 1 - 2 * (qx * qx + qy * qy))
             cost = cost + ((roll - ref["bank"]) / cfg.bank_scale) ** 2
             sideslip = torch.asin((v / airspeed.clamp_min(1e-3)).clamp(-1.0, 1.0))
@@ -164,8 +177,10 @@ class MPPI(TensorDictModuleBase):
         elif self.command_table is not None:
             now = torch.round(td["state", "time"] / self.env_dt).long()  # [N]
             ahead = torch.round(tau[:, 0] / self.env_dt).long()[:, None]  # [H, 1]
-            rows = self.command_table[(now + ahead).clamp(max=self.command_table.shape[0] - 1)]  # [H, N, 3]
-            ref = {"bank": rows[..., 0], "climb": rows[..., 1], "airspeed": rows[..., 2]}
+            index = (now + ahead).clamp(max=self.command_table.shape[0] - 1)  # [H, N]
+            rows = self.command_table[index]  # [H, N, 3]
+            ref = {"bank": rows[..., 0], "climb": rows[..., 1], "airspeed": rows[..., 2],
+                   "height": self.start_height + self.climb_profile[index]}
         else:
             ref = {name: td["task", key].expand(self.horizon, self.n)
                    for name, key in (("bank", "bank_command"), ("climb", "climb_rate_command"),
@@ -219,6 +234,7 @@ class MPPI(TensorDictModuleBase):
         if fresh.any():
             self.plan[fresh] = self.trim_command[self.channels].to(self.plan)
             self.counter[fresh] = 0
+            self.start_height[fresh] = -td["state", "position_ned"][fresh][:, 2]
         due = (self.counter % self.replan_every) == 0
         if due.any():
             self.replan(td, due)
