@@ -22,7 +22,7 @@ import torch
 from scipy import integrate, signal
 
 from falcon_rl import Simulator
-from falcon_rl.physics._warp import init_warp, warp_available
+from falcon_rl.physics._warp import init_warp, warp_available, warp_cuda_available
 from falcon_rl.physics.dynamics import AirInputs, evaluate
 from falcon_rl.physics.rotations import ned_to_body
 from falcon_rl.physics.wind import (
@@ -256,19 +256,25 @@ def test_per_env_severity_and_off_by_default(navion) -> None:
 needs_warp = pytest.mark.skipif(not warp_available(), reason="warp-lang is not installed")
 
 
+on_cuda = pytest.param("cuda", marks=[pytest.mark.gpu, pytest.mark.skipif(
+    not warp_cuda_available(), reason="needs CUDA (torch and warp)")])
+
+
 @needs_warp
+@pytest.mark.parametrize("device", ["cpu", on_cuda])
 @pytest.mark.parametrize("severity", ["light", "severe"])
-def test_torch_warp_parity_with_the_same_noise(navion, severity: str) -> None:
+def test_torch_warp_parity_with_the_same_noise(navion, severity: str, device: str) -> None:
     n = 64
     config = TurbulenceConfig(severity=severity, external_noise=True)
-    sims = [Simulator(navion, num_envs=n, backend=b, turbulence=config) for b in ("torch", "warp")]
-    heights = torch.linspace(5.0, 900.0, n)  # low altitude, the blend and the table
+    sims = [Simulator(navion, num_envs=n, backend=b, turbulence=config, device=device)
+            for b in ("torch", "warp")]
+    heights = torch.linspace(5.0, 900.0, n, device=device)  # low altitude, the blend and the table
     for sim in sims:
         sim.reset({"height": heights})
-    g = torch.Generator().manual_seed(0)
+    g = torch.Generator(device=device).manual_seed(0)
     cmd = sims[0].state["command"]
     for _ in range(100):
-        noise = torch.randn(n, 6, generator=g)
+        noise = torch.randn(n, 6, generator=g, device=device)
         for sim in sims:
             sim.turbulence.noise.copy_(noise)
             sim.step(cmd)

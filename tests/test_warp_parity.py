@@ -28,7 +28,7 @@ import torch
 
 from falcon_rl import Simulator, load_airframe
 from falcon_rl.physics import state as S
-from falcon_rl.physics._warp import init_warp, warp_available
+from falcon_rl.physics._warp import init_warp, warp_available, warp_cuda_available
 from falcon_rl.physics.actuators import actuator_derivative
 from falcon_rl.physics.aero import aero_forces, aero_forces_wp
 from falcon_rl.physics.atmosphere import isa_density, isa_density_wp
@@ -379,15 +379,8 @@ def test_warp_backend_rejects_float64():
         Simulator("navion", backend="warp", dtype=torch.float64)
 
 
-def _cuda_ready() -> bool:
-    if not (warp_available() and torch.cuda.is_available()):
-        return False
-    init_warp()
-    return wp.get_cuda_device_count() > 0
-
-
 @pytest.mark.gpu
-@pytest.mark.skipif(not _cuda_ready(), reason="needs CUDA (torch and warp)")
+@pytest.mark.skipif(not warp_cuda_available(), reason="needs CUDA (torch and warp)")
 @pytest.mark.parametrize("name", AIRFRAMES)
 def test_one_second_trajectory_cuda(name):
     """Warp on CUDA against torch on CUDA, 1,024 envs, as the CPU trajectory test."""

@@ -24,6 +24,15 @@ def warp_available() -> bool:
     return wp is not None
 
 
+def warp_cuda_available() -> bool:
+    """True when both torch and Warp see a CUDA device (the warp backend can run on ``cuda``)."""
+    import torch
+
+    if wp is None or not torch.cuda.is_available():
+        return False
+    return init_warp().get_cuda_device_count() > 0
+
+
 def init_warp() -> Any:
     """Initialise Warp once (quiet) and return the ``warp`` module."""
     global _initialised
