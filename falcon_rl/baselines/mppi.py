@@ -15,8 +15,9 @@ Altitude cost per planning step (tau ahead), with the reference ramp extrapolate
 
 The vertical-speed term and a horizon several times the climb transient are what let the planner
 stop at the target instead of flying through it. The attitude cost scores bank, climb-rate and
-airspeed errors and the sideslip (coordinated turns) against the maneuver's command stream read
-ahead over the horizon (the current commands held, for streams that are not known in advance).
+airspeed errors, the sideslip (coordinated turns) and, for a known stream, the error to the height
+profile that its climb-rate commands integrate to (an integral term), against the maneuver's
+command stream read ahead over the horizon (the current commands held for streams not known ahead).
 
 Tuning notes. The sampling noise must stay small next to the commands that fly the airframe: with
 (0.03, 0.05, 0.05, 0.15) the Navion (53 m/s, 3 s throttle lag) drifted up to 3 m off its target
