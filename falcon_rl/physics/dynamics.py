@@ -16,11 +16,11 @@ from dataclasses import dataclass
 import torch
 
 from . import state as S
-from ._warp import warp_func, wp
+from ._warp import warp_func, warp_struct, wp
 from .actuators import actuator_derivative, actuator_derivative_wp, saturate, saturate_wp
 from .aero import aero_forces, aero_forces_wp
 from .atmosphere import isa_density, isa_density_wp
-from .params import ModelParams, WarpParams
+from .params import ModelParams, Vec6, WarpParams
 from .propulsion import propulsion_forces, propulsion_forces_wp
 from .rotations import (
     normalize_quaternion,
@@ -172,18 +172,32 @@ def state_vec3(x: StateVec, start: int) -> wp.vec3:
     return wp.vec3(x[start], x[start + 1], x[start + 2])
 
 
+@warp_struct
+class EvaluationWp:
+    """Per-env twin of the parts of :class:`Evaluation` that the derivative and the state need."""
+
+    rotation: wp.mat33
+    airspeed: float
+    alpha: float
+    beta: float
+    height: float
+    wing_height: float
+    surfaces: wp.vec3
+    force_body: wp.vec3
+    moment_body: wp.vec3
+    thrust: float
+    coefficients: Vec6
+
+
 @warp_func
-def derivative_wp(x: StateVec, command: wp.vec4, wind_ned: wp.vec3, gust_velocity_body: wp.vec3,
-                  gust_rate_body: wp.vec3, p: WarpParams, i: int) -> StateVec:
-    """State derivative of env ``i`` (twin of :func:`derivative`; padded throttle slots stay 0)."""
+def evaluate_wp(x: StateVec, wind_ned: wp.vec3, gust_velocity_body: wp.vec3, gust_rate_body: wp.vec3,
+                p: WarpParams, i: int) -> EvaluationWp:
+    """Forces, moments and air data of env ``i`` at state ``x`` (twin of :func:`evaluate`)."""
     q = wp.vec4(x[QUATERNION_START], x[QUATERNION_START + 1], x[QUATERNION_START + 2],
                 x[QUATERNION_START + 3])
-    vel = state_vec3(x, VELOCITY_START)
-    omega = state_vec3(x, ANGULAR_RATE_START)
     rot = rotation_matrix_wp(q)
-    rot_t = wp.transpose(rot)
-    v_air = vel - rot_t * wind_ned - gust_velocity_body
-    omega_air = omega - gust_rate_body
+    v_air = state_vec3(x, VELOCITY_START) - wp.transpose(rot) * wind_ned - gust_velocity_body
+    omega_air = state_vec3(x, ANGULAR_RATE_START) - gust_rate_body
     air = air_data_wp(v_air)
     height = -x[2]
     wing_height = height - wp.dot(wp.vec3(rot[2, 0], rot[2, 1], rot[2, 2]), p.wing_quarter_chord[i])
@@ -195,11 +209,34 @@ def derivative_wp(x: StateVec, command: wp.vec4, wind_ned: wp.vec3, gust_velocit
     aero = aero_forces_wp(air[0], air[1], air[2], omega_air, surfaces, density, wing_height / p.span[i],
                           p, i)
     prop = propulsion_forces_wp(v_air, x, density, p, i)
-    force = aero.force_body + prop.force_body
-    moment = aero.moment_body + prop.moment_body
-    gravity_body = rot_t * wp.vec3(0.0, 0.0, p.gravity[i])
-    v_dot = force / p.mass[i] + gravity_body - wp.cross(omega, vel)
-    w_dot = p.inertia_inv[i] * (moment - wp.cross(omega, p.inertia[i] * omega))
+    ev = EvaluationWp()
+    ev.rotation = rot
+    ev.airspeed = air[0]
+    ev.alpha = air[1]
+    ev.beta = air[2]
+    ev.height = height
+    ev.wing_height = wing_height
+    ev.surfaces = surfaces
+    ev.force_body = aero.force_body + prop.force_body
+    ev.moment_body = aero.moment_body + prop.moment_body
+    ev.thrust = prop.thrust
+    ev.coefficients = aero.coefficients
+    return ev
+
+
+@warp_func
+def derivative_wp(x: StateVec, command: wp.vec4, wind_ned: wp.vec3, gust_velocity_body: wp.vec3,
+                  gust_rate_body: wp.vec3, p: WarpParams, i: int) -> StateVec:
+    """State derivative of env ``i`` (twin of :func:`derivative`; padded throttle slots stay 0)."""
+    ev = evaluate_wp(x, wind_ned, gust_velocity_body, gust_rate_body, p, i)
+    rot = ev.rotation
+    q = wp.vec4(x[QUATERNION_START], x[QUATERNION_START + 1], x[QUATERNION_START + 2],
+                x[QUATERNION_START + 3])
+    vel = state_vec3(x, VELOCITY_START)
+    omega = state_vec3(x, ANGULAR_RATE_START)
+    gravity_body = wp.transpose(rot) * wp.vec3(0.0, 0.0, p.gravity[i])
+    v_dot = ev.force_body / p.mass[i] + gravity_body - wp.cross(omega, vel)
+    w_dot = p.inertia_inv[i] * (ev.moment_body - wp.cross(omega, p.inertia[i] * omega))
     p_dot = rot * vel
     q_dot = quaternion_derivative_wp(q, omega)
     d = actuator_derivative_wp(x, command, p, i)

@@ -260,37 +260,59 @@ class Simulator:
 
     @property
     def state(self) -> TensorDict:
-        """Named fields of the current state (clones), batch [N]."""
+        """Named fields of the current state (clones), batch [N]. On the warp backend the derived
+        quantities (air data, forces' coefficients, thrust, contact) come from one kernel launch."""
         x = self.x
-        ev = evaluate(x, self.params, self.air)
         q = x[:, S.QUATERNION]
+        derived = self._warp_derived() if self.backend == "warp" else self._torch_derived()
         return TensorDict(
             {
                 "position_ned": x[:, S.POSITION].clone(),
                 "quaternion": q.clone(),
                 "euler": quaternion_to_euler(q),
                 "velocity_body": x[:, S.VELOCITY].clone(),
-                "velocity_ned": (ev.rotation @ x[:, S.VELOCITY].unsqueeze(-1)).squeeze(-1),
                 "angular_rate_body": x[:, S.ANGULAR_RATE].clone(),
-                "airspeed": ev.airspeed,
-                "alpha": ev.alpha,
-                "beta": ev.beta,
-                "height": ev.height,
-                "wing_height": ev.wing_height,
-                "surface_position": ev.surfaces,
                 "surface_rate": x[:, S.SURFACE_RATE].clone(),
                 "throttle": x[:, self.layout.throttle].clone(),
-                "thrust": ev.thrust.sum(-1),
-                "aero_coefficients": ev.coefficients,
                 "command": self.command.clone(),
-                "ground_contact": ground_contact(ev, self.params),
                 "time": self.time.clone(),
                 "gust_velocity_body": self.gust_velocity_body.clone(),
                 "gust_rate_body": self.gust_rate_body.clone(),
+                **derived,
             },
             batch_size=[self.num_envs],
             device=self.device,
         )
+
+    def _torch_derived(self) -> dict[str, torch.Tensor]:
+        ev = evaluate(self.x, self.params, self.air)
+        return {
+            "velocity_ned": (ev.rotation @ self.x[:, S.VELOCITY].unsqueeze(-1)).squeeze(-1),
+            "airspeed": ev.airspeed,
+            "alpha": ev.alpha,
+            "beta": ev.beta,
+            "height": ev.height,
+            "wing_height": ev.wing_height,
+            "surface_position": ev.surfaces,
+            "thrust": ev.thrust.sum(-1),
+            "aero_coefficients": ev.coefficients,
+            "ground_contact": ground_contact(ev, self.params),
+        }
+
+    def _warp_derived(self) -> dict[str, torch.Tensor]:
+        e = self._engine.evaluate()  # columns: warp_kernels.EVALUATION_COLUMNS
+        return {
+            "velocity_ned": e[:, 16:19].clone(),
+            "airspeed": e[:, 0].clone(),
+            "alpha": e[:, 1].clone(),
+            "beta": e[:, 2].clone(),
+            "height": e[:, 3].clone(),
+            "wing_height": e[:, 4].clone(),
+            "surface_position": e[:, 5:8].clone(),
+            "thrust": e[:, 8].clone(),
+            "aero_coefficients": e[:, 9:15].clone(),
+            "ground_contact": (e[:, 3] <= 0.0) | (e[:, 15] <= 0.0),
+        }
 
 
 class _TorchEngine:

@@ -95,6 +95,9 @@ class WarpEngine:
         self._is_cuda = sim.device.type == "cuda"
         self._key: tuple[Any, ...] = ()
         self._launches: list[Any] = []
+        self._evaluate_launch: Any = None
+        self._evaluation = torch.empty(sim.num_envs, len(warp_kernels.EVALUATION_COLUMNS),
+                                       device=sim.device, dtype=torch.float32)
         self._stream: Any = None
         slices = [(0, sim.num_envs)] if self._is_cuda else cpu_slices(sim.num_envs, sim.warp_cpu_threads)
         self.slices = slices
@@ -149,6 +152,9 @@ class WarpEngine:
         self._launches = [wp.launch(self._kernels.step_kernel, dim=count, inputs=[*inputs, offset],
                                     device=self.device, record_cmd=True)
                           for offset, count in self.slices]
+        self._evaluate_launch = wp.launch(self._kernels.evaluate_kernel, dim=sim.num_envs,
+                                          inputs=[inputs[0], *inputs[2:6], wp.from_torch(self._evaluation)],
+                                          device=self.device, record_cmd=True)
         if self._is_cuda:
             self._stream = wp.stream_from_torch(self.sim.device)
         self._key = self._binding_key()
@@ -160,17 +166,29 @@ class WarpEngine:
         turb = self.sim.turbulence
         if turb is not None and not turb.external_noise:
             turb.rng[1] += 1
-        if self._is_cuda:
-            if torch.cuda.current_stream(self.sim.device).cuda_stream != self._stream.cuda_stream:
-                self._stream = self._wp.stream_from_torch(self.sim.device)
-            self._launches[0].launch(stream=self._stream)
-        elif len(self._launches) == 1:
-            self._launches[0].launch()
+        if len(self._launches) == 1:
+            self._replay(self._launches[0])
         else:
             pending = [_pool().submit(launch.launch) for launch in self._launches[1:]]
             self._launches[0].launch()
             for future in pending:
                 future.result()
+
+    def evaluate(self) -> torch.Tensor:
+        """[N, len(EVALUATION_COLUMNS)] observables of the current state (engine-owned buffer,
+        overwritten by the next call): one kernel launch."""
+        if self._binding_key() != self._key:
+            self.rebind()
+        self._replay(self._evaluate_launch)
+        return self._evaluation
+
+    def _replay(self, launch: Any) -> None:
+        if self._is_cuda:
+            if torch.cuda.current_stream(self.sim.device).cuda_stream != self._stream.cuda_stream:
+                self._stream = self._wp.stream_from_torch(self.sim.device)
+            launch.launch(stream=self._stream)
+        else:
+            launch.launch()
 
     def _params_moved(self) -> bool:
         return any(t.data_ptr() != ptr for t, ptr in zip(vars(self.sim.params).values(),

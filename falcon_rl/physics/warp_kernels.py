@@ -14,13 +14,17 @@ from __future__ import annotations
 
 import warp as wp
 
-from .dynamics import derivative_wp, project_wp
+from .dynamics import derivative_wp, evaluate_wp, project_wp
 from .params import WarpParams
 from .rotations import rotation_matrix_wp
 from .state import QUATERNION_START, VELOCITY_START, StateVec
 from .wind import NUM_FILTER_STATES, NUM_NOISE, Vec6, Vec8, dryden_step_wp
 
 INTEGRATOR_CODES = {"euler": 0, "rk4": 1}
+#: Columns of :func:`evaluate_kernel`'s output row.
+EVALUATION_COLUMNS = ("airspeed", "alpha", "beta", "height", "wing_height", "surface_e", "surface_a",
+                      "surface_r", "thrust", "CL", "CD", "CY", "Cl", "Cm", "Cn", "lowest_tip_height",
+                      "velocity_n", "velocity_e", "velocity_d")
 #: Turbulence modes of the step kernel: off, noise from the Warp streams, noise read from an array.
 TURBULENCE_OFF, TURBULENCE_RANDOM, TURBULENCE_EXTERNAL = 0, 1, 2
 
@@ -131,3 +135,33 @@ def derivative_kernel(
                       gust_rate_body[i], p, i)
     for k in range(size):
         out[i, k] = d[k]
+
+
+@wp.kernel
+def evaluate_kernel(
+    x: wp.array2d(dtype=wp.float32),
+    wind_ned: wp.array(dtype=wp.vec3),
+    gust_velocity_body: wp.array(dtype=wp.vec3),
+    gust_rate_body: wp.array(dtype=wp.vec3),
+    p: WarpParams,
+    out: wp.array2d(dtype=wp.float32),
+):
+    """out[i] <- the observable quantities of env i (:data:`EVALUATION_COLUMNS`), twin of what
+    ``Simulator.state`` reads from ``dynamics.evaluate``: one launch instead of the torch model."""
+    i = wp.tid()
+    s = load_state(x, i, x.shape[1])
+    ev = evaluate_wp(s, wind_ned[i], gust_velocity_body[i], gust_rate_body[i], p, i)
+    rot = ev.rotation
+    vel_ned = rot * wp.vec3(s[VELOCITY_START], s[VELOCITY_START + 1], s[VELOCITY_START + 2])
+    half_span_roll = 0.5 * p.span[i] * wp.abs(rot[2, 1])
+    values = wp.vec3(ev.airspeed, ev.alpha, ev.beta)
+    for k in range(3):
+        out[i, k] = values[k]
+        out[i, 5 + k] = ev.surfaces[k]
+        out[i, 16 + k] = vel_ned[k]
+    out[i, 3] = ev.height
+    out[i, 4] = ev.wing_height
+    out[i, 8] = ev.thrust
+    for k in range(6):
+        out[i, 9 + k] = ev.coefficients[k]
+    out[i, 15] = ev.wing_height - half_span_roll
