@@ -1,12 +1,12 @@
-"""Warp engine of the :class:`~falcon_rl.physics.simulator.Simulator` (``backend="warp"``).
-
-The engine binds zero-copy Warp views of the simulator's tensors once (state, command, air motion,
-parameters), records one launch of :func:`~falcon_rl.physics.warp_kernels.step_kernel` and replays it
-on every step: one kernel launch per env step, no host copies. Parameters written in place (domain
-randomisation through ``ModelParams.assign``) are seen by the next launch. Replacing the whole
-``ModelParams`` object, a state buffer, ``dt`` or ``integrator`` re-binds on the next step; replacing a
-single parameter tensor re-binds at the next reset (or call :meth:`WarpEngine.rebind`), which keeps
-that 30-tensor check off the per-step path.
+"""Warp engine of the :class:`~falcon_rl.physics.simulator.Simulator` (``backend="warp"``). The engine
+binds zero-copy Warp views of the simulator's tensors once (state, command, air motion, parameters),
+records a launch of :func:`~falcon_rl.physics.warp_kernels.step_kernel` (one per CPU slice, below)
+and replays it on every step: no host copies. ``Simulator.state`` replays a launch of
+:func:`~falcon_rl.physics.warp_kernels.evaluate_kernel` into an engine-owned buffer. Parameters
+written in place (domain randomisation through ``ModelParams.assign``) are seen by the next launch.
+Replacing the whole ``ModelParams`` object, a state buffer, ``dt`` or ``integrator`` re-binds on the
+next step; replacing a single parameter tensor re-binds at the next reset (or call
+:meth:`WarpEngine.rebind`), which keeps that 30-tensor check off the per-step path.
 On CUDA the launch is queued on torch's current stream, so no synchronisation is needed.
 On the CPU a Warp kernel runs serially on one core; batches of at least ``2 * MIN_ENVS_PER_THREAD``
 envs are split into contiguous slices, one launch per slice, stepped by parallel threads (a CPU
