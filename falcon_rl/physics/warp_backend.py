@@ -1,7 +1,8 @@
-"""Warp engine of the :class:`~falcon_rl.physics.simulator.Simulator` (``backend="warp"``). The engine
-binds zero-copy Warp views of the simulator's tensors once (state, command, air motion, parameters),
-records a launch of :func:`~falcon_rl.physics.warp_kernels.step_kernel` (one per CPU slice, below)
-and replays it on every step: no host copies. ``Simulator.state`` replays a launch of
+"""Warp engine of the :class:`~falcon_rl.physics.simulator.Simulator` (``backend="warp"``).
+
+The engine binds zero-copy Warp views of the simulator's tensors once (state, command, air motion,
+parameters), records a launch of :func:`~falcon_rl.physics.warp_kernels.step_kernel` (one per CPU
+slice, below) and replays it on every step: no host copies. ``Simulator.state`` replays a launch of
 :func:`~falcon_rl.physics.warp_kernels.evaluate_kernel` into an engine-owned buffer. Parameters
 written in place (domain randomisation through ``ModelParams.assign``) are seen by the next launch.
 Replacing the whole ``ModelParams`` object, a state buffer, ``dt`` or ``integrator`` re-binds on the
