@@ -43,11 +43,7 @@ class SACConfig(OffPolicyConfig):
     alpha_init: float = 0.1
 
 
-#: Off-policy defaults; SAC altitude trains for 400 k frames: with seed 1 on a free CPU core it
-#: reached survival 1, acquisition 1, RMSE 0.37 m on the 100-episode protocol (RMSE 2.1 m at 100 k,
-#: 1.0 m at 200 k, 0.41 m at 300 k frames over 20 episodes; 1,414 s wall, 283 env-steps/s with
-#: learning). A seed-0 run on a heavily shared CPU had not acquired by 100 k frames.
-DEFAULTS = {**OFF_POLICY_DEFAULTS, "altitude": {**OFF_POLICY_DEFAULTS["altitude"], "frames": 400_000}}
+DEFAULTS = OFF_POLICY_DEFAULTS
 
 
 def make_config(task: str = "altitude", **overrides) -> SACConfig:
