@@ -16,22 +16,11 @@ from dataclasses import dataclass
 
 import torch
 from tensordict.nn import TensorDictModule
-from torchrl.collectors import Collector
-from torchrl.data import LazyTensorStorage, ReplayBuffer
-from torchrl.modules import ProbabilisticActor, TanhNormal, ValueOperator
+from torchrl.modules import ProbabilisticActor, TanhNormal
 from torchrl.objectives import SACLoss, SoftUpdate
 
-from .common import (
-    OFF_POLICY_DEFAULTS,
-    TRANSITION,
-    OffPolicyConfig,
-    QNet,
-    config_from,
-    make_actor_net,
-    make_train_env,
-    observation_dims,
-    stagger_episodes,
-)
+from .common import OFF_POLICY_DEFAULTS, OffPolicyConfig, config_from, make_actor_net, make_train_env
+from .off_policy import make_critic, make_replay_buffer, stored_batches
 from .runner import TrainingRun
 
 
@@ -54,41 +43,25 @@ def make_config(task: str = "altitude", **overrides) -> SACConfig:
 def train(cfg: SACConfig) -> dict:
     """Train SAC as configured; returns the run summary (and writes files under ``cfg.out``)."""
     env = make_train_env(cfg)
-    obs_dim, act_dim = observation_dims(env)
     actor_net = make_actor_net(cfg, env, scale="head")
     norm = actor_net.norm
     actor = ProbabilisticActor(TensorDictModule(actor_net, ["observation"], ["loc", "scale"]),
                                in_keys=["loc", "scale"], spec=env.action_spec, distribution_class=TanhNormal)
-    qnet = QNet(norm, obs_dim, act_dim, cfg.critic_cells, cfg.critic_activation).to(cfg.device)
-    critic = ValueOperator(qnet, in_keys=["observation", "action"], out_keys=["state_action_value"])
-    loss = SACLoss(actor, critic, num_qvalue_nets=2, loss_function="l2", alpha_init=cfg.alpha_init,
-                   action_spec=env.action_spec_unbatched)
+    loss = SACLoss(actor, make_critic(cfg, env, norm), num_qvalue_nets=2, loss_function="l2",
+                   alpha_init=cfg.alpha_init, action_spec=env.action_spec_unbatched)
     loss.make_value_estimator(gamma=cfg.gamma)
     target_update = SoftUpdate(loss, tau=cfg.tau)
     optimizers = {"actor": torch.optim.Adam(loss.actor_network_params.values(True, True), lr=cfg.actor_lr),
                   "critic": torch.optim.Adam(loss.qvalue_network_params.values(True, True), lr=cfg.critic_lr),
                   "alpha": torch.optim.Adam([loss.log_alpha], lr=cfg.alpha_lr)}
-    buffer = ReplayBuffer(storage=LazyTensorStorage(cfg.buffer_size, device=cfg.device),
-                          batch_size=cfg.batch_size)
+    buffer = make_replay_buffer(cfg)
 
     run = TrainingRun("sac", cfg, env, actor_net, {"actor": actor_net, "loss": loss}, optimizers,
                       replay=buffer)
     counters = run.start()
-    batch_frames = cfg.num_envs * cfg.rollout_steps
-    iterations = -(-run.remaining_frames() // batch_frames)
-    fresh = counters.frames == 0  # a resumed run has its buffer back (or refills it with its policy)
-    learn_after = cfg.init_random_frames if fresh else cfg.batch_size
-    collector = Collector(env, actor, frames_per_batch=batch_frames, total_frames=iterations * batch_frames,
-                          init_random_frames=cfg.init_random_frames if fresh else 0, device=cfg.device,
-                          trust_policy=True,
-                          auto_register_policy_transforms=False)
-    stagger_episodes(env, cfg.seed + counters.iterations)
     scalars: dict[str, float] = {}
-    for batch in collector:
-        batch["next", "reward"] = batch["next", "reward"] * cfg.reward_scale
-        buffer.extend(batch.select(*TRANSITION).reshape(-1))
-        norm.update(batch["observation"])
-        if len(buffer) >= learn_after:
+    for batch, ready in stored_batches(cfg, env, actor, run, counters, buffer, norm):
+        if ready:
             for _ in range(cfg.updates_per_batch):
                 out = loss(buffer.sample())
                 for optimizer in optimizers.values():
@@ -103,7 +76,6 @@ def train(cfg: SACConfig) -> dict:
             scalars = {"loss/critic": float(out["loss_qvalue"]), "loss/actor": float(out["loss_actor"]),
                        "train/alpha": float(out["alpha"]), "train/entropy": float(out["entropy"])}
         run.after_batch(batch, scalars)
-    collector.shutdown()
     return run.finish()
 
 

@@ -18,22 +18,11 @@ from dataclasses import dataclass
 import torch
 from tensordict.nn import TensorDictModule, TensorDictSequential
 from torch import nn
-from torchrl.collectors import Collector
-from torchrl.data import LazyTensorStorage, ReplayBuffer
-from torchrl.modules import AdditiveGaussianModule, ValueOperator
+from torchrl.modules import AdditiveGaussianModule
 from torchrl.objectives import SoftUpdate, TD3Loss
 
-from .common import (
-    OFF_POLICY_DEFAULTS,
-    TRANSITION,
-    OffPolicyConfig,
-    QNet,
-    config_from,
-    make_actor_net,
-    make_train_env,
-    observation_dims,
-    stagger_episodes,
-)
+from .common import OFF_POLICY_DEFAULTS, OffPolicyConfig, config_from, make_actor_net, make_train_env
+from .off_policy import make_critic, make_replay_buffer, stored_batches
 from .runner import TrainingRun
 
 
@@ -61,41 +50,27 @@ def make_config(task: str = "altitude", **overrides) -> TD3Config:
 def train(cfg: TD3Config) -> dict:
     """Train TD3 as configured; returns the run summary (and writes files under ``cfg.out``)."""
     env = make_train_env(cfg)
-    obs_dim, act_dim = observation_dims(env)
     actor_net = make_actor_net(cfg, env, scale=None)
     norm = actor_net.norm
     actor = TensorDictModule(nn.Sequential(actor_net, nn.Tanh()), ["observation"], ["action"])
     explore = TensorDictSequential(actor, AdditiveGaussianModule(
         env.action_spec_unbatched, sigma_init=cfg.exploration_noise, sigma_end=cfg.exploration_noise,
         device=cfg.device))
-    qnet = QNet(norm, obs_dim, act_dim, cfg.critic_cells, cfg.critic_activation).to(cfg.device)
-    critic = ValueOperator(qnet, in_keys=["observation", "action"], out_keys=["state_action_value"])
-    loss = TD3Loss(actor, critic, action_spec=env.action_spec_unbatched, num_qvalue_nets=2,
-                   loss_function="l2", policy_noise=cfg.policy_noise, noise_clip=cfg.noise_clip)
+    loss = TD3Loss(actor, make_critic(cfg, env, norm), action_spec=env.action_spec_unbatched,
+                   num_qvalue_nets=2, loss_function="l2", policy_noise=cfg.policy_noise,
+                   noise_clip=cfg.noise_clip)
     loss.make_value_estimator(gamma=cfg.gamma)
     target_update = SoftUpdate(loss, tau=cfg.tau)
     optimizers = {"actor": torch.optim.Adam(loss.actor_network_params.values(True, True), lr=cfg.actor_lr),
                   "critic": torch.optim.Adam(loss.qvalue_network_params.values(True, True), lr=cfg.critic_lr)}
-    buffer = ReplayBuffer(storage=LazyTensorStorage(cfg.buffer_size, device=cfg.device),
-                          batch_size=cfg.batch_size)
+    buffer = make_replay_buffer(cfg)
 
     run = TrainingRun("td3", cfg, env, actor_net, {"actor": actor_net, "loss": loss}, optimizers,
                       replay=buffer)
     counters = run.start()
-    batch_frames = cfg.num_envs * cfg.rollout_steps
-    iterations = -(-run.remaining_frames() // batch_frames)
-    fresh = counters.frames == 0  # a resumed run has its buffer back (or refills it with its policy)
-    learn_after = cfg.init_random_frames if fresh else cfg.batch_size
-    collector = Collector(env, explore, frames_per_batch=batch_frames, total_frames=iterations * batch_frames,
-                          init_random_frames=cfg.init_random_frames if fresh else 0, device=cfg.device,
-                          trust_policy=True, auto_register_policy_transforms=False)
-    stagger_episodes(env, cfg.seed + counters.iterations)
     scalars: dict[str, float] = {}
-    for batch in collector:
-        batch["next", "reward"] = batch["next", "reward"] * cfg.reward_scale
-        buffer.extend(batch.select(*TRANSITION).reshape(-1))
-        norm.update(batch["observation"])
-        if len(buffer) >= learn_after:
+    for batch, ready in stored_batches(cfg, env, explore, run, counters, buffer, norm):
+        if ready:
             for _ in range(cfg.updates_per_batch):
                 counters.updates += 1
                 out = loss(buffer.sample())
@@ -110,7 +85,6 @@ def train(cfg: TD3Config) -> dict:
             out = out.detach()
             scalars = {"loss/critic": float(out["loss_qvalue"]), "loss/actor": float(out["loss_actor"])}
         run.after_batch(batch, scalars)
-    collector.shutdown()
     return run.finish()
 
 
