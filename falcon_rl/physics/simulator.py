@@ -264,7 +264,7 @@ class Simulator:
         quantities (air data, forces' coefficients, thrust, contact) come from one kernel launch."""
         x = self.x
         q = x[:, S.QUATERNION]
-        derived = self._warp_derived() if self.backend == "warp" else self._torch_derived()
+        derived = self._engine.derived_state() if self.backend == "warp" else self._torch_derived()
         return TensorDict(
             {
                 "position_ned": x[:, S.POSITION].clone(),
@@ -297,21 +297,6 @@ class Simulator:
             "thrust": ev.thrust.sum(-1),
             "aero_coefficients": ev.coefficients,
             "ground_contact": ground_contact(ev, self.params),
-        }
-
-    def _warp_derived(self) -> dict[str, torch.Tensor]:
-        e = self._engine.evaluate()  # columns: warp_kernels.EVALUATION_COLUMNS
-        return {
-            "velocity_ned": e[:, 16:19].clone(),
-            "airspeed": e[:, 0].clone(),
-            "alpha": e[:, 1].clone(),
-            "beta": e[:, 2].clone(),
-            "height": e[:, 3].clone(),
-            "wing_height": e[:, 4].clone(),
-            "surface_position": e[:, 5:8].clone(),
-            "thrust": e[:, 8].clone(),
-            "aero_coefficients": e[:, 9:15].clone(),
-            "ground_contact": (e[:, 3] <= 0.0) | (e[:, 15] <= 0.0),
         }
 
 

@@ -183,6 +183,30 @@ class WarpEngine:
         self._replay(self._evaluate_launch)
         return self._evaluation
 
+    def derived_state(self) -> dict[str, torch.Tensor]:
+        """The derived fields of ``Simulator.state`` (fresh tensors), read from one evaluation launch
+        by the column names of ``warp_kernels.EVALUATION_COLUMNS``."""
+        e = self.evaluate()
+        col = {name: k for k, name in enumerate(self._kernels.EVALUATION_COLUMNS)}
+
+        def take(first: str, last: str | None = None) -> torch.Tensor:
+            if last is None:
+                return e[:, col[first]].clone()
+            return e[:, col[first]:col[last] + 1].clone()
+
+        return {
+            "velocity_ned": take("velocity_n", "velocity_d"),
+            "airspeed": take("airspeed"),
+            "alpha": take("alpha"),
+            "beta": take("beta"),
+            "height": take("height"),
+            "wing_height": take("wing_height"),
+            "surface_position": take("surface_e", "surface_r"),
+            "thrust": take("thrust"),
+            "aero_coefficients": take("CL", "Cn"),
+            "ground_contact": (e[:, col["height"]] <= 0.0) | (e[:, col["lowest_tip_height"]] <= 0.0),
+        }
+
     def _replay(self, launch: Any) -> None:
         if self._is_cuda:
             if torch.cuda.current_stream(self.sim.device).cuda_stream != self._stream.cuda_stream:
