@@ -33,8 +33,20 @@ from falcon_rl.physics.actuators import actuator_derivative
 from falcon_rl.physics.aero import aero_forces, aero_forces_wp
 from falcon_rl.physics.atmosphere import isa_density, isa_density_wp
 from falcon_rl.physics.dynamics import air_data, derivative
-from falcon_rl.physics.ground_effect import phillips_hunsaker, phillips_hunsaker_wp
-from falcon_rl.physics.params import WarpParams, bind_warp_params, build_params
+from falcon_rl.physics.ground_effect import (
+    WingConstants,
+    phillips_hunsaker,
+    phillips_hunsaker_wp,
+    wing_constants,
+)
+from falcon_rl.physics.params import (
+    EXPONENT_BITS,
+    EXPONENT_MASK,
+    WarpParams,
+    bind_warp_params,
+    build_params,
+    pack_exponents,
+)
 from falcon_rl.physics.propulsion import motor_thrust, propulsion_forces, propulsion_forces_wp
 from falcon_rl.physics.rotations import euler_to_quaternion, quat_from_warp, quat_to_warp, rotation_matrix
 
@@ -55,10 +67,10 @@ if warp_available():
         out[i] = isa_density_wp(h[i])
 
     @wp.kernel
-    def _ground_effect_kernel(x: wp.array(dtype=wp.vec4), out: wp.array(dtype=wp.vec2)):
+    def _ground_effect_kernel(hb_cl: wp.array(dtype=wp.vec2), wing: wp.array(dtype=WingConstants),
+                              out: wp.array(dtype=wp.vec2)):
         i = wp.tid()
-        v = x[i]
-        out[i] = phillips_hunsaker_wp(v[0], v[1], v[2], v[3])
+        out[i] = phillips_hunsaker_wp(hb_cl[i][0], wing[i], hb_cl[i][1])
 
     @wp.kernel
     def _aero_kernel(air: wp.array(dtype=wp.vec3), omega: wp.array(dtype=wp.vec3),
@@ -205,9 +217,10 @@ def test_ground_effect_factors(name):
     cl = torch.tensor([0.0, 0.3, -0.4, 1.2, 1e-4]).repeat_interleave(200)
     ar, tr = torch.full_like(hb, g.aspect_ratio), torch.full_like(hb, g.taper_ratio)
     out = torch.zeros(hb.numel(), 2)
+    wing = wing_constants(ar, tr).contiguous()
     _launch(_ground_effect_kernel, hb.numel(),
-            [wp.from_torch(torch.stack([hb, ar, tr, cl], -1).contiguous(), dtype=wp.vec4),
-             wp.from_torch(out, dtype=wp.vec2)])
+            [wp.from_torch(torch.stack([hb, cl], -1).contiguous(), dtype=wp.vec2),
+             wp.from_torch(wing, dtype=WingConstants), wp.from_torch(out, dtype=wp.vec2)])
     kappa_l, kappa_d = phillips_hunsaker(hb, ar, tr, cl)
     _close("kappa", out, torch.stack([kappa_l, kappa_d], -1), rtol=1e-5, floor=0.0)
 
@@ -372,6 +385,47 @@ def test_domain_randomisation_is_seen_without_rebinding():
         s.step(command)
     err = ((sim.x - ref.x).abs() / ref.x.abs().amax(dim=0).clamp_min(1.0)).max()
     assert err < 2e-6
+
+
+def test_randomised_wing_reaches_the_ground_effect_constants():
+    """Assigning aspect or taper ratio refreshes the precomputed wing constants, so both backends
+    fly the randomised wing (and agree), and the constants equal a fresh computation."""
+    ref, sim, command = _pair("navion", True, "rk4", n=32)
+    mask = torch.arange(32) % 3 == 0
+    for s in (ref, sim):
+        s.x[:, 2] = -0.2 * s.airframe.geometry.span  # deep in ground effect
+        before = s.params.wing_constants.clone()
+        s.params.assign(mask, aspect_ratio=torch.tensor(4.0), taper_ratio=torch.tensor(0.3))
+        expected = wing_constants(s.params.aspect_ratio, s.params.taper_ratio)
+        assert torch.allclose(s.params.wing_constants, expected)
+        assert not torch.allclose(s.params.wing_constants[mask], before[mask])
+        assert torch.equal(s.params.wing_constants[~mask], before[~mask])
+        for _ in range(5):
+            s.step(command)
+    err = ((sim.x - ref.x).abs() / ref.x.abs().amax(dim=0).clamp_min(1.0)).max()
+    assert err < 1e-5
+    assert torch.allclose(sim.time, ref.time) and torch.allclose(sim.time, torch.full((32,), 5 * sim.dt))
+
+
+def test_warp_step_restores_the_callers_floating_point_mode():
+    """The CPU kernel flushes denormals while it runs (they cost a third of a step on trimmed,
+    symmetric states) and restores the caller's mode: gradual underflow still works afterwards."""
+    import numpy as np
+
+    sim = Simulator("navion", num_envs=8, backend="warp")
+    sim.step(sim.command.clone())
+    tiny = np.float32(1e-38) * np.float32(1e-3)
+    assert tiny != 0.0 and torch.tensor(1e-38) * 1e-3 != 0.0
+
+
+def test_exponent_codes_unpack_to_the_table():
+    exponents = build_params(load_airframe("navion"), 1).aero_exponents
+    codes = pack_exponents(exponents)
+    assert codes.dtype == torch.int32 and codes.shape == (exponents.shape[0],)
+    unpacked = torch.stack([(codes >> (EXPONENT_BITS * j)) & EXPONENT_MASK for j in range(5)], -1)
+    assert torch.equal(unpacked.long(), exponents)
+    with pytest.raises(ValueError, match=r"\[0, 7\]"):
+        pack_exponents(torch.tensor([[8, 0, 0, 0, 0]]))
 
 
 def test_warp_backend_rejects_float64():

@@ -20,8 +20,8 @@ import torch
 
 from ..airframe import MAX_EXPONENT
 from ._warp import vector_type, warp_func, warp_struct, wp
-from .ground_effect import GE_INDUCED, GE_PAPER, phillips_hunsaker, phillips_hunsaker_wp
-from .params import ModelParams, WarpParams
+from .ground_effect import GE_INDUCED, GE_PAPER, influence_ratios, phillips_hunsaker_wp
+from .params import EXPONENT_BITS, EXPONENT_MASK, ModelParams, WarpParams
 
 MIN_AIRSPEED = 0.1  # m/s, floor for the non-dimensional rates
 
@@ -83,7 +83,7 @@ def aero_coefficients_oge(
     b = torch.minimum(torch.maximum(beta, p.beta_range[:, 0]), p.beta_range[:, 1])
     x = torch.cat([a.unsqueeze(-1), b.unsqueeze(-1), surfaces], dim=-1)  # [N, 5]
     mono = monomials(x, p.aero_exponents)  # [N, T]
-    coeffs = (mono.unsqueeze(-1) * p.aero_coefficients).sum(dim=1)
+    coeffs = torch.bmm(mono.unsqueeze(1), p.aero_coefficients).squeeze(1)  # [N, 6]
     return coeffs + (p.aero_rates * rates_hat.unsqueeze(1)).sum(dim=-1)
 
 
@@ -94,7 +94,7 @@ def apply_ground_effect(coeffs: torch.Tensor, h_over_b: torch.Tensor, p: ModelPa
     Returns (coefficients [N, 6], induced C_D [N], kappa_L [N], kappa_D [N]).
     """
     cl_inf, cd_inf = coeffs[:, 0], coeffs[:, 1]
-    kappa_l, kappa_d = phillips_hunsaker(h_over_b, p.aspect_ratio, p.taper_ratio, cl_inf)
+    kappa_l, kappa_d = influence_ratios(h_over_b, p.wing_constants, cl_inf)
     mode = p.ground_effect_mode
     active = mode != 0
     kappa_l = torch.where(active, kappa_l, torch.ones_like(kappa_l))
@@ -182,9 +182,11 @@ def aero_coefficients_oge_wp(alpha: float, beta: float, surfaces: wp.vec3, rates
     pr = powers_wp(surfaces[2])
     c = Vec6()
     for t in range(p.num_terms):
-        term = (pa[int(p.aero_exponents[t, 0])] * pb[int(p.aero_exponents[t, 1])]
-                * pe[int(p.aero_exponents[t, 2])] * pl[int(p.aero_exponents[t, 3])]
-                * pr[int(p.aero_exponents[t, 4])])
+        code = p.aero_exponent_codes[t]
+        term = (pa[code & EXPONENT_MASK] * pb[(code >> EXPONENT_BITS) & EXPONENT_MASK]
+                * pe[(code >> (2 * EXPONENT_BITS)) & EXPONENT_MASK]
+                * pl[(code >> (3 * EXPONENT_BITS)) & EXPONENT_MASK]
+                * pr[(code >> (4 * EXPONENT_BITS)) & EXPONENT_MASK])
         c = c + term * p.aero_coefficients[i, t]
     for k in range(6):
         c[k] = c[k] + (p.aero_rates[i, k, 0] * rates_hat[0] + p.aero_rates[i, k, 1] * rates_hat[1]
@@ -207,7 +209,7 @@ def aero_forces_wp(airspeed: float, alpha: float, beta: float, omega_air: wp.vec
     kappa_l = float(1.0)  # noqa: UP018 (a mutable Warp local)
     kappa_d = float(1.0)  # noqa: UP018 (a mutable Warp local)
     if mode != 0:
-        kappas = phillips_hunsaker_wp(h_over_b, p.aspect_ratio[i], p.taper_ratio[i], cl_inf)
+        kappas = phillips_hunsaker_wp(h_over_b, p.wing_constants[i], cl_inf)
         kappa_l = kappas[0]
         kappa_d = kappas[1]
     induced_factor = 1.0 / (wp.pi * p.oswald[i] * p.aspect_ratio[i])

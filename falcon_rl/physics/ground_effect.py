@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import torch
 
-from ._warp import warp_func, wp
+from ._warp import vector_type, warp_func, wp
 
 H_OVER_B_MIN = 0.05
 GE_OFF, GE_INDUCED, GE_PAPER = 0, 1, 2
@@ -54,6 +54,34 @@ def taper_corrections(aspect_ratio: torch.Tensor, taper_ratio: torch.Tensor
     return delta_d, delta_l
 
 
+def wing_constants(aspect_ratio: torch.Tensor, taper_ratio: torch.Tensor) -> torch.Tensor:
+    """[..., 5] (delta_D, delta_L, R_A^0.882, R_A^1.19, R_A^3.18): the factors of the correlations
+    that depend on the wing alone. The simulator computes them once per env (``ModelParams``)
+    instead of in every derivative evaluation, where their seven powers cost as much as the rest
+    of the ground-effect model."""
+    aspect_ratio, taper_ratio = torch.broadcast_tensors(aspect_ratio, taper_ratio)
+    delta_d, delta_l = taper_corrections(aspect_ratio, taper_ratio)
+    return torch.stack([delta_d, delta_l, aspect_ratio**0.882, aspect_ratio**1.19, aspect_ratio**3.18],
+                       dim=-1)
+
+
+def influence_ratios(h_over_b: torch.Tensor, constants: torch.Tensor,
+                     lift_coefficient: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+    """(kappa_L, kappa_D) at h_over_b [...] for a wing given by its ``constants`` [..., 5]
+    (:func:`wing_constants`); ``lift_coefficient`` [...] turns on the high-lift corrections."""
+    x = torch.clamp(h_over_b, min=H_OVER_B_MIN)
+    delta_d, delta_l, ar_0882, ar_119, ar_318 = constants.unbind(-1)
+    kappa_d = 1.0 - delta_d * torch.exp(-4.74 * x**0.814) - x**2 * torch.exp(-3.88 * x**0.758)
+    kappa_l = 1.0 + delta_l * 288.0 * x**0.787 * torch.exp(-9.14 * x**0.327) / ar_0882
+    if lift_coefficient is not None:
+        cl = torch.abs(lift_coefficient)
+        beta_d = 1.0 + 0.0361 * cl**1.21 / (ar_119 * x**1.51)
+        beta_l = 1.0 + 0.269 * cl**1.45 / (ar_318 * x**1.12)
+        kappa_d = kappa_d * beta_d
+        kappa_l = kappa_l / beta_l
+    return kappa_l, kappa_d
+
+
 def phillips_hunsaker(
     h_over_b: torch.Tensor,
     aspect_ratio: torch.Tensor,
@@ -70,38 +98,33 @@ def phillips_hunsaker(
     Returns:
         (kappa_L, kappa_D), broadcast shape of the inputs.
     """
-    x = torch.clamp(h_over_b, min=H_OVER_B_MIN)
-    delta_d, delta_l = taper_corrections(aspect_ratio, taper_ratio)
-    kappa_d = 1.0 - delta_d * torch.exp(-4.74 * x**0.814) - x**2 * torch.exp(-3.88 * x**0.758)
-    kappa_l = 1.0 + delta_l * 288.0 * x**0.787 * torch.exp(-9.14 * x**0.327) / aspect_ratio**0.882
-    if lift_coefficient is not None:
-        cl = torch.abs(lift_coefficient)
-        beta_d = 1.0 + 0.0361 * cl**1.21 / (aspect_ratio**1.19 * x**1.51)
-        beta_l = 1.0 + 0.269 * cl**1.45 / (aspect_ratio**3.18 * x**1.12)
-        kappa_d = kappa_d * beta_d
-        kappa_l = kappa_l / beta_l
-    return kappa_l, kappa_d
+    shape = torch.broadcast_shapes(h_over_b.shape, torch.as_tensor(aspect_ratio).shape,
+                                   torch.as_tensor(taper_ratio).shape)
+    constants = wing_constants(torch.as_tensor(aspect_ratio, dtype=h_over_b.dtype).expand(shape),
+                               torch.as_tensor(taper_ratio, dtype=h_over_b.dtype).expand(shape))
+    return influence_ratios(h_over_b.expand(shape), constants, lift_coefficient)
 
 
 # ---------------------------------------------------------------------------------------- warp twin
+#: One env's :func:`wing_constants` row.
+WingConstants = vector_type(5)
+
+
 @warp_func
-def phillips_hunsaker_wp(h_over_b: float, aspect_ratio: float, taper_ratio: float,
-                         lift_coefficient: float) -> wp.vec2:
-    """(kappa_L, kappa_D) with the high-lift corrections (twin of :func:`phillips_hunsaker` with
-    a lift coefficient). The powers of x share one logarithm: x^a = exp(a ln x)."""
+def phillips_hunsaker_wp(h_over_b: float, constants: WingConstants, lift_coefficient: float) -> wp.vec2:
+    """(kappa_L, kappa_D) with the high-lift corrections (twin of :func:`influence_ratios` with a
+    lift coefficient). The powers of x share one logarithm: x^a = exp(a ln x)."""
     x = wp.max(h_over_b, H_OVER_B_MIN)
     lx = wp.log(x)
-    delta_d = 1.0 - 0.157 * (wp.pow(taper_ratio, 0.775) - 0.373) * (wp.pow(aspect_ratio, 0.417) - 1.27)
-    delta_l = 1.0 - 2.25 * (wp.pow(taper_ratio, 0.00273) - 0.997) * (wp.pow(aspect_ratio, 0.717) + 13.6)
-    kappa_d = 1.0 - delta_d * wp.exp(-4.74 * wp.exp(0.814 * lx)) - x * x * wp.exp(
+    kappa_d = 1.0 - constants[0] * wp.exp(-4.74 * wp.exp(0.814 * lx)) - x * x * wp.exp(
         -3.88 * wp.exp(0.758 * lx))
-    kappa_l = 1.0 + delta_l * 288.0 * wp.exp(0.787 * lx) * wp.exp(-9.14 * wp.exp(0.327 * lx)) / wp.pow(
-        aspect_ratio, 0.882)
+    kappa_l = 1.0 + constants[1] * 288.0 * wp.exp(0.787 * lx) * wp.exp(-9.14 * wp.exp(0.327 * lx)) / (
+        constants[2])
     cl = wp.abs(lift_coefficient)
     if cl > 0.0:
         lc = wp.log(cl)
-        beta_d = 1.0 + 0.0361 * wp.exp(1.21 * lc - 1.51 * lx) / wp.pow(aspect_ratio, 1.19)
-        beta_l = 1.0 + 0.269 * wp.exp(1.45 * lc - 1.12 * lx) / wp.pow(aspect_ratio, 3.18)
+        beta_d = 1.0 + 0.0361 * wp.exp(1.21 * lc - 1.51 * lx) / constants[3]
+        beta_l = 1.0 + 0.269 * wp.exp(1.45 * lc - 1.12 * lx) / constants[4]
         kappa_d = kappa_d * beta_d
         kappa_l = kappa_l / beta_l
     return wp.vec2(kappa_l, kappa_d)

@@ -221,11 +221,10 @@ class Simulator:
             if not torch.isfinite(commands).all():
                 bad = (~torch.isfinite(commands)).any(-1).nonzero().flatten().tolist()
                 raise ValueError(f"commands contain NaN or Inf for envs {bad[:10]}")
-        self.command.copy_(commands.clamp(-1.0, 1.0))
+        torch.clamp(commands.detach(), -1.0, 1.0, out=self.command)  # the step is not differentiable
         if self.turbulence is not None and self.backend != "warp":  # warp: inside the step kernel
             self.advance_turbulence()
-        self._engine.step()
-        self.time += self.dt
+        self._engine.step()  # advances x and time (on warp both inside the step kernel)
 
     def advance_turbulence(self) -> None:
         """Advance the Dryden filters once (torch) at the current height and mean-air airspeed and
@@ -301,10 +300,16 @@ class Simulator:
 
 
 class _TorchEngine:
+    """Steps ``sim.x`` with the torch model; ``step`` advances the state and the clock by dt."""
+
     def __init__(self, sim: Simulator):
         self.sim = sim
 
     def step(self) -> None:
+        self.advance()
+        self.sim.time += self.sim.dt
+
+    def advance(self) -> None:
         sim = self.sim
         sim.x.copy_(sim.advance_torch(sim.x, sim.command))
 
@@ -320,7 +325,7 @@ class _CompiledTorchEngine(_TorchEngine):
         monomial_plan(sim.params.aero_exponents)  # warm the plan cache outside the graph
         self._compiled = torch.compile(sim.advance_torch, dynamic=False)
 
-    def step(self) -> None:
+    def advance(self) -> None:
         sim = self.sim
         sim.x.copy_(self._compiled(sim.x, sim.command))
 
@@ -328,7 +333,7 @@ class _CompiledTorchEngine(_TorchEngine):
 class _ScipyEngine(_TorchEngine):
     """Reference: ``solve_ivp`` (RK45, rtol 1e-10, atol 1e-10) over each step, float64."""
 
-    def step(self) -> None:
+    def advance(self) -> None:
         import numpy as np
         from scipy.integrate import solve_ivp
 

@@ -110,9 +110,9 @@ class WarpEngine:
         turb_key = (None if turb is None else
                     (id(turb), turb.filter.data_ptr(), turb.w20.data_ptr(), turb.noise.data_ptr(),
                      turb.external_noise))
-        return (id(sim.params), sim.x.data_ptr(), sim.command.data_ptr(), sim.wind_ned.data_ptr(),
-                sim.gust_velocity_body.data_ptr(), sim.gust_rate_body.data_ptr(), sim.dt, sim.integrator,
-                turb_key)
+        return (id(sim.params), sim.x.data_ptr(), sim.time.data_ptr(), sim.command.data_ptr(),
+                sim.wind_ned.data_ptr(), sim.gust_velocity_body.data_ptr(), sim.gust_rate_body.data_ptr(),
+                sim.dt, sim.integrator, turb_key)
 
     def _turbulence_inputs(self) -> list[Any]:
         """Views of the Dryden state and the mode code (placeholders and mode 0 when off)."""
@@ -133,7 +133,7 @@ class WarpEngine:
     def rebind(self) -> None:
         """Bind fresh views of the simulator's tensors and record the launch again."""
         wp, sim = self._wp, self.sim
-        for name in ("x", "command", "wind_ned", "gust_velocity_body", "gust_rate_body"):
+        for name in ("x", "time", "command", "wind_ned", "gust_velocity_body", "gust_rate_body"):
             if not getattr(sim, name).is_contiguous():
                 raise ValueError(f"Simulator.{name} must be contiguous for the warp backend")
         self._params_object = sim.params  # held so that its id cannot be reused
@@ -150,7 +150,8 @@ class WarpEngine:
             self._kernels.INTEGRATOR_CODES[sim.integrator],
             *self._turbulence_inputs(),
         ]
-        self._launches = [wp.launch(self._kernels.step_kernel, dim=count, inputs=[*inputs, offset],
+        step_inputs = [inputs[0], wp.from_torch(sim.time), *inputs[1:]]
+        self._launches = [wp.launch(self._kernels.step_kernel, dim=count, inputs=[*step_inputs, offset],
                                     device=self.device, record_cmd=True)
                           for offset, count in self.slices]
         self._evaluate_launch = wp.launch(self._kernels.evaluate_kernel, dim=sim.num_envs,
@@ -161,7 +162,7 @@ class WarpEngine:
         self._key = self._binding_key()
 
     def step(self) -> None:
-        """Advance ``sim.x`` by one dt in place (one kernel launch)."""
+        """Advance ``sim.x`` and ``sim.time`` by one dt in place (one kernel launch per CPU slice)."""
         if self._binding_key() != self._key:
             self.rebind()
         turb = self.sim.turbulence

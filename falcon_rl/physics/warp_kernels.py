@@ -20,6 +20,30 @@ from .rotations import rotation_matrix_wp
 from .state import QUATERNION_START, VELOCITY_START, StateVec
 from .wind import NUM_FILTER_STATES, NUM_NOISE, Vec6, Vec8, dryden_step_wp
 
+_FLUSH_BEGIN = """
+#if !defined(__CUDA_ARCH__) && (defined(__x86_64__) || defined(__i386__))
+unsigned int saved = __builtin_ia32_stmxcsr();
+__builtin_ia32_ldmxcsr(saved | 0x8040u);
+return (int)saved;
+#else
+return 0;
+#endif
+"""
+_FLUSH_END = """
+#if !defined(__CUDA_ARCH__) && (defined(__x86_64__) || defined(__i386__))
+__builtin_ia32_ldmxcsr((unsigned int)saved);
+#endif
+"""
+
+
+@wp.func_native(_FLUSH_BEGIN)
+def flush_denormals_begin() -> int: ...
+
+
+@wp.func_native(_FLUSH_END)
+def flush_denormals_end(saved: int): ...
+
+
 INTEGRATOR_CODES = {"euler": 0, "rk4": 1}
 #: Columns of :func:`evaluate_kernel`'s output row.
 EVALUATION_COLUMNS = ("airspeed", "alpha", "beta", "height", "wing_height", "surface_e", "surface_a",
@@ -72,6 +96,7 @@ def advance_turbulence(s: StateVec, wind: wp.vec3, i: int, gust_velocity_body: w
 @wp.kernel
 def step_kernel(
     x: wp.array2d(dtype=wp.float32),
+    time: wp.array(dtype=wp.float32),
     command: wp.array(dtype=wp.vec4),
     wind_ned: wp.array(dtype=wp.vec3),
     gust_velocity_body: wp.array(dtype=wp.vec3),
@@ -86,15 +111,18 @@ def step_kernel(
     turb_mode: int,
     offset: int,
 ):
-    """x[i] <- project(integrate(x[i], dt)) for env i = offset + tid, command held over the step.
+    """x[i] <- project(integrate(x[i], dt)) and time[i] += dt for env i = offset + tid, command held
+    over the step.
 
-    x: [N, S] state (in place). command: [N] normalised commands. wind_ned, gust_*: [N] air motion.
+    x: [N, S] state (in place). time: [N] s (in place). command: [N] normalised commands.
+    wind_ned, gust_*: [N] air motion.
     integrator: 0 Euler, 1 classic RK4 (same stage arithmetic as ``integrators.rk4_step``).
     turb_*: Dryden state (filter [N, 8], W20 [N], noise [N, 6], rng (seed, step) [2]); with
     turb_mode != 0 the gusts are advanced first (noise from the streams or read from turb_noise).
     offset: first env of this launch (a CPU batch is split into slices stepped by parallel threads).
     """
     i = wp.tid() + offset
+    saved = flush_denormals_begin()
     size = x.shape[1]
     s = load_state(x, i, size)
     u = command[i]
@@ -116,6 +144,8 @@ def step_kernel(
     y = project_wp(y, p, i)
     for k in range(size):
         x[i, k] = y[k]
+    time[i] = time[i] + dt
+    flush_denormals_end(saved)
 
 
 @wp.kernel
