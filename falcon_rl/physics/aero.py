@@ -83,7 +83,9 @@ def aero_coefficients_oge(
     b = torch.minimum(torch.maximum(beta, p.beta_range[:, 0]), p.beta_range[:, 1])
     x = torch.cat([a.unsqueeze(-1), b.unsqueeze(-1), surfaces], dim=-1)  # [N, 5]
     mono = monomials(x, p.aero_exponents)  # [N, T]
-    coeffs = torch.bmm(mono.unsqueeze(1), p.aero_coefficients).squeeze(1)  # [N, 6]
+    # A broadcast product and sum, which Inductor fuses: a bmm here ran the compiled step on an H100
+    # at 50 M env-steps/s (1 M envs) against 82 M, though it is ~20 % faster eager on the CPU.
+    coeffs = (mono.unsqueeze(-1) * p.aero_coefficients).sum(dim=1)
     return coeffs + (p.aero_rates * rates_hat.unsqueeze(1)).sum(dim=-1)
 
 
