@@ -44,9 +44,12 @@ def test_warp_threaded_slices_are_bit_identical(turbulence):
         command = torch.linspace(-0.5, 0.5, 50).unsqueeze(-1).expand(50, 4).contiguous()
         for _ in range(30):
             sim.step(command)
-        runs.append(sim.x.clone())
-    assert torch.isfinite(runs[0]).all()
-    assert torch.equal(runs[0], runs[1])
+        runs.append((sim.x.clone(), sim.state))
+    (x1, state1), (x3, state3) = runs
+    assert torch.isfinite(x1).all()
+    assert torch.equal(x1, x3)
+    for key in sorted(state1.keys()):  # the evaluation kernel is sliced the same way
+        assert torch.equal(state1[key], state3[key]), key
 
 
 def test_speed_option_errors():

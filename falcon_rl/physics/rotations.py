@@ -112,6 +112,20 @@ def rotation_matrix_wp(q: wp.vec4) -> wp.mat33:
 
 
 @warp_func
+def quaternion_to_euler_wp(q: wp.vec4) -> wp.vec3:
+    """(roll, pitch, yaw) rad of a unit (w, x, y, z) quaternion (twin of :func:`quaternion_to_euler`)."""
+    w = q[0]
+    x = q[1]
+    y = q[2]
+    z = q[3]
+    return wp.vec3(
+        wp.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y)),
+        wp.asin(wp.clamp(2.0 * (w * y - z * x), -1.0, 1.0)),
+        wp.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z)),
+    )
+
+
+@warp_func
 def quaternion_derivative_wp(q: wp.vec4, omega: wp.vec3) -> wp.vec4:
     """q_dot = 1/2 q (x) (0, omega) (twin of :func:`quaternion_derivative`)."""
     w = q[0]

@@ -264,11 +264,12 @@ class Simulator:
         x = self.x
         q = x[:, S.QUATERNION]
         derived = self._engine.derived_state() if self.backend == "warp" else self._torch_derived()
+        euler = derived.pop("euler") if "euler" in derived else quaternion_to_euler(q)
         return TensorDict(
             {
                 "position_ned": x[:, S.POSITION].clone(),
                 "quaternion": q.clone(),
-                "euler": quaternion_to_euler(q),
+                "euler": euler,
                 "velocity_body": x[:, S.VELOCITY].clone(),
                 "angular_rate_body": x[:, S.ANGULAR_RATE].clone(),
                 "surface_rate": x[:, S.SURFACE_RATE].clone(),

@@ -96,7 +96,7 @@ class WarpEngine:
         self._is_cuda = sim.device.type == "cuda"
         self._key: tuple[Any, ...] = ()
         self._launches: list[Any] = []
-        self._evaluate_launch: Any = None
+        self._evaluate_launches: list[Any] = []
         self._evaluation = torch.empty(sim.num_envs, len(warp_kernels.EVALUATION_COLUMNS),
                                        device=sim.device, dtype=torch.float32)
         self._stream: Any = None
@@ -154,9 +154,11 @@ class WarpEngine:
         self._launches = [wp.launch(self._kernels.step_kernel, dim=count, inputs=[*step_inputs, offset],
                                     device=self.device, record_cmd=True)
                           for offset, count in self.slices]
-        self._evaluate_launch = wp.launch(self._kernels.evaluate_kernel, dim=sim.num_envs,
-                                          inputs=[inputs[0], *inputs[2:6], wp.from_torch(self._evaluation)],
-                                          device=self.device, record_cmd=True)
+        evaluate_inputs = [inputs[0], *inputs[2:6], wp.from_torch(self._evaluation)]
+        self._evaluate_launches = [wp.launch(self._kernels.evaluate_kernel, dim=count,
+                                             inputs=[*evaluate_inputs, offset], device=self.device,
+                                             record_cmd=True)
+                                   for offset, count in self.slices]
         if self._is_cuda:
             self._stream = wp.stream_from_torch(self.sim.device)
         self._key = self._binding_key()
@@ -168,20 +170,14 @@ class WarpEngine:
         turb = self.sim.turbulence
         if turb is not None and not turb.external_noise:
             turb.rng[1] += 1
-        if len(self._launches) == 1:
-            self._replay(self._launches[0])
-        else:
-            pending = [_pool().submit(launch.launch) for launch in self._launches[1:]]
-            self._launches[0].launch()
-            for future in pending:
-                future.result()
+        self._run(self._launches)
 
     def evaluate(self) -> torch.Tensor:
         """[N, len(EVALUATION_COLUMNS)] observables of the current state (engine-owned buffer,
         overwritten by the next call): one kernel launch."""
         if self._binding_key() != self._key:
             self.rebind()
-        self._replay(self._evaluate_launch)
+        self._run(self._evaluate_launches)
         return self._evaluation
 
     def derived_state(self) -> dict[str, torch.Tensor]:
@@ -206,7 +202,18 @@ class WarpEngine:
             "thrust": take("thrust"),
             "aero_coefficients": take("CL", "Cn"),
             "ground_contact": (e[:, col["height"]] <= 0.0) | (e[:, col["lowest_tip_height"]] <= 0.0),
+            "euler": take("roll", "yaw"),
         }
+
+    def _run(self, launches: list[Any]) -> None:
+        """Replay one launch, or the CPU slices' launches in parallel threads."""
+        if len(launches) == 1:
+            self._replay(launches[0])
+            return
+        pending = [_pool().submit(launch.launch) for launch in launches[1:]]
+        launches[0].launch()
+        for future in pending:
+            future.result()
 
     def _replay(self, launch: Any) -> None:
         if self._is_cuda:

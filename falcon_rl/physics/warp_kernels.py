@@ -16,10 +16,15 @@ import warp as wp
 
 from .dynamics import derivative_wp, evaluate_wp, project_wp
 from .params import WarpParams
-from .rotations import rotation_matrix_wp
+from .rotations import quaternion_to_euler_wp, rotation_matrix_wp
 from .state import QUATERNION_START, VELOCITY_START, StateVec
 from .wind import NUM_FILTER_STATES, NUM_NOISE, Vec6, Vec8, dryden_step_wp
 
+# Denormal floats (|x| < 1.2e-38) take a slow microcode path on x86 CPUs. Trimmed, symmetric states
+# make them (powers of near-zero sideslip and lateral deflections in the aero table), and they cost a
+# third of a CPU step. Each CPU kernel sets flush-to-zero and denormals-are-zero for its own work and
+# restores the caller's MXCSR: the physics changes by less than 1e-38, the caller's thread not at all.
+# On CUDA (and non-x86 CPUs) these are no-ops.
 _FLUSH_BEGIN = """
 #if !defined(__CUDA_ARCH__) && (defined(__x86_64__) || defined(__i386__))
 unsigned int saved = __builtin_ia32_stmxcsr();
@@ -37,18 +42,22 @@ __builtin_ia32_ldmxcsr((unsigned int)saved);
 
 
 @wp.func_native(_FLUSH_BEGIN)
-def flush_denormals_begin() -> int: ...
+def flush_denormals_begin() -> int:
+    """Turn on flush-to-zero on this CPU thread; returns the previous MXCSR for the matching end."""
+    ...
 
 
 @wp.func_native(_FLUSH_END)
-def flush_denormals_end(saved: int): ...
+def flush_denormals_end(saved: int):
+    """Restore the MXCSR that :func:`flush_denormals_begin` returned."""
+    ...
 
 
 INTEGRATOR_CODES = {"euler": 0, "rk4": 1}
 #: Columns of :func:`evaluate_kernel`'s output row.
 EVALUATION_COLUMNS = ("airspeed", "alpha", "beta", "height", "wing_height", "surface_e", "surface_a",
                       "surface_r", "thrust", "CL", "CD", "CY", "Cl", "Cm", "Cn", "lowest_tip_height",
-                      "velocity_n", "velocity_e", "velocity_d")
+                      "velocity_n", "velocity_e", "velocity_d", "roll", "pitch", "yaw")
 #: Turbulence modes of the step kernel: off, noise from the Warp streams, noise read from an array.
 TURBULENCE_OFF, TURBULENCE_RANDOM, TURBULENCE_EXTERNAL = 0, 1, 2
 
@@ -160,11 +169,13 @@ def derivative_kernel(
 ):
     """out[i] <- f(x[i], command[i]) (twin of ``dynamics.derivative``), for checks and tools."""
     i = wp.tid()
+    saved = flush_denormals_begin()
     size = x.shape[1]
     d = derivative_wp(load_state(x, i, size), command[i], wind_ned[i], gust_velocity_body[i],
                       gust_rate_body[i], p, i)
     for k in range(size):
         out[i, k] = d[k]
+    flush_denormals_end(saved)
 
 
 @wp.kernel
@@ -175,23 +186,30 @@ def evaluate_kernel(
     gust_rate_body: wp.array(dtype=wp.vec3),
     p: WarpParams,
     out: wp.array2d(dtype=wp.float32),
+    offset: int,
 ):
-    """out[i] <- the observable quantities of env i (:data:`EVALUATION_COLUMNS`), twin of what
-    ``Simulator.state`` reads from ``dynamics.evaluate``: one launch instead of the torch model."""
-    i = wp.tid()
+    """out[i] <- the observable quantities of env i = offset + tid (:data:`EVALUATION_COLUMNS`),
+    twin of what ``Simulator.state`` reads from ``dynamics.evaluate`` and ``quaternion_to_euler``:
+    one launch (per CPU slice) instead of the torch model."""
+    i = wp.tid() + offset
+    saved = flush_denormals_begin()
     s = load_state(x, i, x.shape[1])
     ev = evaluate_wp(s, wind_ned[i], gust_velocity_body[i], gust_rate_body[i], p, i)
     rot = ev.rotation
     vel_ned = rot * wp.vec3(s[VELOCITY_START], s[VELOCITY_START + 1], s[VELOCITY_START + 2])
+    euler = quaternion_to_euler_wp(wp.vec4(s[QUATERNION_START], s[QUATERNION_START + 1],
+                                           s[QUATERNION_START + 2], s[QUATERNION_START + 3]))
     half_span_roll = 0.5 * p.span[i] * wp.abs(rot[2, 1])
     values = wp.vec3(ev.airspeed, ev.alpha, ev.beta)
     for k in range(3):
         out[i, k] = values[k]
         out[i, 5 + k] = ev.surfaces[k]
         out[i, 16 + k] = vel_ned[k]
+        out[i, 19 + k] = euler[k]
     out[i, 3] = ev.height
     out[i, 4] = ev.wing_height
     out[i, 8] = ev.thrust
     for k in range(6):
         out[i, 9 + k] = ev.coefficients[k]
     out[i, 15] = ev.wing_height - half_span_roll
+    flush_denormals_end(saved)
