@@ -34,3 +34,16 @@ def test_bench_bad_input(capsys, argv):
     assert main(["bench", "--json", *argv]) == 2
     captured = capsys.readouterr()
     assert captured.out == "" and "error" in captured.err
+
+
+def test_jsbsim_baseline_before_and_after(capsys):
+    """The baseline is timed before and after the other cases; ratios use the faster of the two."""
+    code = main(["bench", "--json", "--backend", "warp", "--envs", "2", "--steps", "2", "--trials", "5",
+                 "--warmup", "1", "--no-env", "--baseline", "jsbsim"])
+    assert code == 0
+    cases = json.loads(capsys.readouterr().out)["cases"]
+    baselines = [c for c in cases if c["target"] == "jsbsim"]
+    assert [c["backend"] for c in baselines] == ["jsbsim-c172p before", "jsbsim-c172p after"]
+    reference = max(c["env_steps_per_s"] for c in baselines)
+    for c in cases:
+        assert c["ratio_to_jsbsim"] == pytest.approx(c["env_steps_per_s"] / reference)
