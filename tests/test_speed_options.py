@@ -11,7 +11,7 @@ import torch
 from falcon_rl import Simulator
 from falcon_rl.cli import main
 from falcon_rl.physics._warp import warp_available
-from falcon_rl.physics.warp_backend import MIN_ENVS_PER_THREAD, cpu_slices
+from falcon_rl.physics.warp_backend import CHUNKS_PER_THREAD, MIN_ENVS_PER_THREAD, cpu_slices
 
 needs_warp = pytest.mark.skipif(not warp_available(), reason="warp-lang not installed")
 
@@ -23,7 +23,8 @@ def test_cpu_slices_cover_the_batch_once():
         assert [offset for offset, _ in slices] == [sum(c for _, c in slices[:k]) for k in range(len(slices))]
         assert all(count >= 1 for _, count in slices)
     assert len(cpu_slices(MIN_ENVS_PER_THREAD - 1, None)) == 1  # small batches stay on one thread
-    assert len(cpu_slices(3, 8)) == 3
+    assert len(cpu_slices(3, 8)) == 3  # at most one chunk per env
+    assert len(cpu_slices(4096, 2)) == 2 * CHUNKS_PER_THREAD  # threads take chunks from a queue
 
 
 def _perturbed(sim: Simulator) -> None:
@@ -39,7 +40,8 @@ def test_warp_threaded_slices_are_bit_identical(turbulence):
     for threads in (1, 3):
         sim = Simulator("volantex_ranger", num_envs=50, backend="warp", turbulence=turbulence, seed=4,
                         warp_cpu_threads=threads)
-        assert len(sim._engine.slices) == threads
+        assert sim._engine.threads == threads
+        assert len(sim._engine.slices) == (1 if threads == 1 else threads * CHUNKS_PER_THREAD)
         _perturbed(sim)
         command = torch.linspace(-0.5, 0.5, 50).unsqueeze(-1).expand(50, 4).contiguous()
         for _ in range(30):

@@ -10,9 +10,10 @@ next step; replacing a single parameter tensor re-binds at the next reset (or ca
 :meth:`WarpEngine.rebind`), which keeps that 30-tensor check off the per-step path.
 On CUDA the launch is queued on torch's current stream, so no synchronisation is needed.
 On the CPU a Warp kernel runs serially on one core; batches of at least ``2 * MIN_ENVS_PER_THREAD``
-envs are split into contiguous slices, one launch per slice, stepped by parallel threads (a CPU
-launch is a ctypes call, which releases the GIL). ``Simulator(warp_cpu_threads=...)`` overrides the
-default of one slice per available core.
+envs are split into contiguous chunks (``CHUNKS_PER_THREAD`` per thread), one recorded launch per
+chunk, which parallel threads take from a shared queue (a CPU launch is a ctypes call, which
+releases the GIL). ``Simulator(warp_cpu_threads=...)`` overrides the default of one thread per
+available core.
 With turbulence on, the kernel also advances the Dryden filters (``sim.turbulence``); the step
 counter of its noise streams is a device tensor bumped by torch before each launch.
 """
@@ -22,6 +23,7 @@ from __future__ import annotations
 import itertools
 import os
 from concurrent.futures import ThreadPoolExecutor
+from queue import Empty, SimpleQueue
 from typing import TYPE_CHECKING, Any
 
 import torch
@@ -36,6 +38,9 @@ if TYPE_CHECKING:
 
 #: Smallest CPU slice worth a thread of its own (below it the thread hand-off costs more than it saves).
 MIN_ENVS_PER_THREAD = 512
+#: Chunks per thread: the threads take chunks from a shared queue, so a core slowed by another process
+#: hands its remaining chunks to the others instead of holding back the whole step.
+CHUNKS_PER_THREAD = 4
 
 _POOL: ThreadPoolExecutor | None = None
 
@@ -48,13 +53,20 @@ def available_cores() -> int:
         return os.cpu_count() or 1
 
 
-def cpu_slices(num_envs: int, threads: int | None) -> list[tuple[int, int]]:
-    """(offset, count) slices of a CPU batch, one per thread. ``threads`` None: one per available
-    core, each slice at least :data:`MIN_ENVS_PER_THREAD` envs."""
+def cpu_thread_count(num_envs: int, threads: int | None) -> int:
+    """Threads that step a CPU batch: ``threads``, or with None one per available core with at
+    least :data:`MIN_ENVS_PER_THREAD` envs each (at least one, at most one per env)."""
     if threads is None:
         threads = min(available_cores(), num_envs // MIN_ENVS_PER_THREAD)
-    threads = max(1, min(threads, num_envs))
-    bounds = [num_envs * k // threads for k in range(threads + 1)]
+    return max(1, min(threads, num_envs))
+
+
+def cpu_slices(num_envs: int, threads: int | None) -> list[tuple[int, int]]:
+    """(offset, count) chunks of a CPU batch: one for a single thread, else
+    :data:`CHUNKS_PER_THREAD` per thread (at most one per env), in env order."""
+    count = cpu_thread_count(num_envs, threads)
+    chunks = 1 if count == 1 else min(num_envs, count * CHUNKS_PER_THREAD)
+    bounds = [num_envs * k // chunks for k in range(chunks + 1)]
     return [(lo, hi - lo) for lo, hi in itertools.pairwise(bounds)]
 
 
@@ -100,8 +112,8 @@ class WarpEngine:
         self._evaluation = torch.empty(sim.num_envs, len(warp_kernels.EVALUATION_COLUMNS),
                                        device=sim.device, dtype=torch.float32)
         self._stream: Any = None
-        slices = [(0, sim.num_envs)] if self._is_cuda else cpu_slices(sim.num_envs, sim.warp_cpu_threads)
-        self.slices = slices
+        self.threads = 1 if self._is_cuda else cpu_thread_count(sim.num_envs, sim.warp_cpu_threads)
+        self.slices = [(0, sim.num_envs)] if self._is_cuda else cpu_slices(sim.num_envs, sim.warp_cpu_threads)
         self.rebind()
 
     def _binding_key(self) -> tuple[Any, ...]:
@@ -206,12 +218,25 @@ class WarpEngine:
         }
 
     def _run(self, launches: list[Any]) -> None:
-        """Replay one launch, or the CPU slices' launches in parallel threads."""
+        """Replay one launch, or the CPU chunks' launches from a queue that ``self.threads`` threads
+        (this one and pool workers) drain in parallel."""
         if len(launches) == 1:
             self._replay(launches[0])
             return
-        pending = [_pool().submit(launch.launch) for launch in launches[1:]]
-        launches[0].launch()
+        queue: SimpleQueue[Any] = SimpleQueue()
+        for launch in launches:
+            queue.put(launch)
+
+        def drain() -> None:
+            while True:
+                try:
+                    launch = queue.get_nowait()
+                except Empty:
+                    return
+                launch.launch()
+
+        pending = [_pool().submit(drain) for _ in range(self.threads - 1)]
+        drain()
         for future in pending:
             future.result()
 
