@@ -18,6 +18,7 @@ from collections.abc import Callable
 import torch
 
 from falcon_rl import make_env
+from falcon_rl.bench import env_stepper
 
 
 def _time(fn: Callable[[], object], device: str, calls: int = 200, blocks: int = 5) -> float:
@@ -39,18 +40,10 @@ def _time(fn: Callable[[], object], device: str, calls: int = 200, blocks: int =
 def breakdown(task: str, airframe: str, num_envs: int, backend: str, device: str) -> dict[str, float]:
     """Seconds per call of each part of one env step."""
     env = make_env(task, airframe, num_envs=num_envs, backend=backend, device=device)
-    td = env.reset()
-    td["action"] = env.action_spec.zero()
-    holder = {"td": td}
-
-    def env_step() -> None:
-        _, nxt = env.step_and_maybe_reset(holder["td"])
-        nxt["action"] = td["action"]
-        holder["td"] = nxt
-
+    env_step = env_stepper(env)
     sim, task_obj = env.sim, env.task
     state = sim.state
-    action = td["action"]
+    action = env.action_spec.zero()
     observation = task_obj.observe(state)
     flags = torch.zeros(num_envs, 1, dtype=torch.bool, device=env.device)
     reward = torch.zeros(num_envs, 1, device=env.device)
@@ -69,17 +62,13 @@ def profile_step(task: str, airframe: str, num_envs: int, backend: str, device: 
     """Torch profiler table of 50 env steps (top 25 operators by self CPU time)."""
     from torch.profiler import ProfilerActivity, profile
 
-    env = make_env(task, airframe, num_envs=num_envs, backend=backend, device=device)
-    td = env.reset()
-    td["action"] = env.action_spec.zero()
+    env_step = env_stepper(make_env(task, airframe, num_envs=num_envs, backend=backend, device=device))
     for _ in range(20):
-        _, td = env.step_and_maybe_reset(td)
-        td["action"] = env.action_spec.zero()
+        env_step()
     activities = [ProfilerActivity.CPU] + ([ProfilerActivity.CUDA] if device == "cuda" else [])
     with profile(activities=activities) as prof:
         for _ in range(50):
-            _, td = env.step_and_maybe_reset(td)
-            td["action"] = env.action_spec.zero()
+            env_step()
         if device == "cuda":
             torch.cuda.synchronize()
     return prof.key_averages().table(sort_by="self_cpu_time_total", row_limit=25)

@@ -126,6 +126,22 @@ def time_simulator(cfg: BenchConfig, backend: str, num_envs: int) -> tuple[Bench
     return case.finish(blocks, warmup_s), step_contents(sim)
 
 
+def env_stepper(env: Any) -> Callable[[], None]:
+    """A call that steps a TorchRL env once with a zero action, as a rollout does
+    (``step_and_maybe_reset``, the next TensorDict carried over); the env is reset first."""
+    td = env.reset()
+    action = env.action_spec.zero()
+    td["action"] = action
+    state = {"td": td}
+
+    def step() -> None:
+        _, nxt = env.step_and_maybe_reset(state["td"])
+        nxt["action"] = action
+        state["td"] = nxt
+
+    return step
+
+
 def time_env(cfg: BenchConfig, backend: str, num_envs: int) -> BenchCase | None:
     """Time the TorchRL "altitude" env's ``step_and_maybe_reset`` (None if envs are unavailable)."""
     try:
@@ -135,16 +151,7 @@ def time_env(cfg: BenchConfig, backend: str, num_envs: int) -> BenchCase | None:
     case = BenchCase("env", backend, cfg.device, num_envs, cfg.steps, cfg.trials)
     try:
         env = make_env("altitude", cfg.airframe, num_envs=num_envs, backend=backend, device=cfg.device)
-        td = env.reset()
-        td["action"] = env.action_spec.zero()
-        state = {"td": td}
-
-        def step() -> None:
-            _, nxt = env.step_and_maybe_reset(state["td"])
-            nxt["action"] = td["action"]
-            state["td"] = nxt
-
-        blocks, warmup_s = _time_blocks(step, cfg.steps, cfg.trials, cfg.warmup, cfg.device)
+        blocks, warmup_s = _time_blocks(env_stepper(env), cfg.steps, cfg.trials, cfg.warmup, cfg.device)
     except Exception as exc:  # the env is optional here: report, do not fail the bench
         case.error = f"{type(exc).__name__}: {exc}".splitlines()[0][:200]
         return case
