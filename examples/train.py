@@ -4,7 +4,7 @@
     python examples/train.py --algorithm sac --frames 200000   # a quick look at SAC
     python examples/train.py --algorithm ppo --task attitude
 
-Each recipe (falcon_rl/objectives/{ppo,sac,td3}.py) has the same two calls: ``make_config(task,
+Each recipe (falcon_rl/recipes/{ppo,sac,td3}.py) has the same two calls: ``make_config(task,
 **overrides)`` fills the task's defaults, ``train(cfg)`` runs it. Writes checkpoint.pt, policy.pt,
 policy.ts and CSV logs under runs/examples/<algorithm>_<task>.
 """
@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import argparse
 
-from falcon_rl.objectives import ppo, sac, td3
+from falcon_rl.recipes import ppo, sac, td3
 
 RECIPES = {"ppo": ppo, "sac": sac, "td3": td3}
 

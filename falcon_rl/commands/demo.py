@@ -62,7 +62,7 @@ def _protocol(args: argparse.Namespace, out: Path) -> tuple[list, list[Path], di
             tqdm.write(f"demo: skipping PPO ({exc}); use --train to train one here")
             controllers.remove("ppo")
     if args.train and "ppo" in controllers:
-        from ..objectives import ppo
+        from ..recipes import ppo
 
         cfg = ppo.make_config("altitude", airframe=args.airframe, frames=args.frames, seed=args.seed,
                               backend=args.backend, out=str(out / "ppo_train"), final_eval_episodes=0,

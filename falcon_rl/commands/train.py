@@ -66,7 +66,7 @@ def _config(recipe, args: argparse.Namespace, out: str, overrides: dict):
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..objectives import algorithm
+    from ..recipes import algorithm
 
     for name in ("envs", "frames", "eval_episodes", "threads"):
         value = getattr(args, name)

@@ -57,7 +57,7 @@ def make_controller(name: str, env: FixedWingEnv) -> TensorDictModuleBase:
     if not path.is_file():
         raise ValueError(f"controller must be one of {list(CONTROLLERS)} or a policy file; {name!r} is "
                          "neither")
-    from ..objectives.export import load_policy
+    from ..recipes.export import load_policy
 
     return load_policy(path, env)
 

@@ -1,26 +1,21 @@
-"""Training recipes on TorchRL: :mod:`ppo`, :mod:`sac` and :mod:`td3`, one file each, and the
-pieces they share (networks, checkpoints, policy export, logging, evaluation).
+"""Deprecated alias of :mod:`falcon_rl.recipes` (renamed so as not to shadow ``torchrl.objectives``).
 
-    from falcon_rl.objectives import algorithm
-    module = algorithm("ppo")                       # falcon_rl.objectives.ppo
-    summary = module.train(module.make_config("altitude", frames=2_000_000))
+``import falcon_rl.objectives`` and ``from falcon_rl.objectives.ppo import ...`` keep working for
+one release and warn; import :mod:`falcon_rl.recipes` instead.
 """
 
 from __future__ import annotations
 
 import importlib
-from types import ModuleType
+import sys
+import warnings
 
-from .export import load_policy, read_policy, save_policy
+warnings.warn("falcon_rl.objectives is deprecated and will be removed in the next release; "
+              "import falcon_rl.recipes instead", DeprecationWarning, stacklevel=2)
 
-NAMES = ("ppo", "sac", "td3")
-
-
-def algorithm(name: str) -> ModuleType:
-    """The recipe module of ``name`` (one of ``NAMES``): ``make_config`` and ``train``."""
-    if name not in NAMES:
-        raise ValueError(f"unknown algorithm {name!r}; choose one of {list(NAMES)}")
-    return importlib.import_module(f"{__name__}.{name}")
-
-
-__all__ = ["NAMES", "algorithm", "load_policy", "read_policy", "save_policy"]
+_recipes = importlib.import_module("falcon_rl.recipes")
+_SUBMODULES = ("checkpoint", "common", "evaluate", "export", "logging", "off_policy", "ppo", "runner", "sac",
+               "td3")
+for _name in _SUBMODULES:
+    sys.modules[f"{__name__}.{_name}"] = importlib.import_module(f"falcon_rl.recipes.{_name}")
+globals().update({k: v for k, v in vars(_recipes).items() if not k.startswith("__")})

@@ -1,7 +1,7 @@
 """Shipped policies (package data): ``<algorithm>_<task>_<airframe>.pt`` policy files, see README.md.
 
     path = shipped_policy("altitude", "volantex_ranger")          # PPO by default
-    policy = falcon_rl.objectives.load_policy(path, env)
+    policy = falcon_rl.recipes.load_policy(path, env)
 """
 
 from __future__ import annotations

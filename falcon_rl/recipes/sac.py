@@ -1,6 +1,6 @@
 """SAC (twin Q, learned temperature) on a batched falcon-rl task, CleanRL style, on TorchRL.
 
-    from falcon_rl.objectives import sac
+    from falcon_rl.recipes import sac
     summary = sac.train(sac.make_config("altitude", frames=2_000_000))
 
 One iteration: the Collector rolls ``rollout_steps`` steps of all ``num_envs`` envs (random actions

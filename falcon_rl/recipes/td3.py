@@ -1,7 +1,7 @@
 """TD3 (twin Q, target-policy smoothing, delayed actor) on a batched falcon-rl task, CleanRL style,
 on TorchRL.
 
-    from falcon_rl.objectives import td3
+    from falcon_rl.recipes import td3
     summary = td3.train(td3.make_config("altitude", frames=2_000_000))
 
 One iteration: the Collector rolls ``rollout_steps`` steps of all ``num_envs`` envs with Gaussian

@@ -10,11 +10,11 @@ import torch
 
 import falcon_rl
 from falcon_rl.cli import main
-from falcon_rl.objectives import algorithm, load_policy
-from falcon_rl.objectives.checkpoint import atomic_save, load_checkpoint, load_replay, replay_state
-from falcon_rl.objectives.common import RunningNorm
-from falcon_rl.objectives.export import read_policy
 from falcon_rl.policies import available, shipped_policy
+from falcon_rl.recipes import algorithm, load_policy
+from falcon_rl.recipes.checkpoint import atomic_save, load_checkpoint, load_replay, replay_state
+from falcon_rl.recipes.common import RunningNorm
+from falcon_rl.recipes.export import read_policy
 
 TINY = {"ppo": {"num_envs": 8, "rollout_steps": 8, "epochs": 1, "minibatches": 2},
         "sac": {"num_envs": 8, "rollout_steps": 4, "updates_per_batch": 2, "batch_size": 16,
@@ -169,7 +169,7 @@ def test_train_cli_set_overrides_recipe_fields():
 def test_tensorboard_logger_writes_events_or_says_what_is_missing(tmp_path):
     import importlib.util
 
-    from falcon_rl.objectives.logging import log_scalars, make_logger
+    from falcon_rl.recipes.logging import log_scalars, make_logger
 
     if importlib.util.find_spec("tensorboard") is None:
         with pytest.raises(ImportError, match="pip install tensorboard"):

@@ -1,6 +1,6 @@
 """PPO (clipped objective, GAE) on a batched falcon-rl task, CleanRL style, on TorchRL.
 
-    from falcon_rl.objectives import ppo
+    from falcon_rl.recipes import ppo
     summary = ppo.train(ppo.make_config("altitude", airframe="volantex_ranger", frames=20_000_000))
 
 One iteration: the Collector rolls ``rollout_steps`` steps of all ``num_envs`` envs (batch

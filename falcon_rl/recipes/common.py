@@ -9,7 +9,7 @@ Networks (all read the env's "observation" [N, D] through one :class:`RunningNor
     QNet        obs [N, D], action [N, A] -> Q(s, a) [N, 1]               (SAC / TD3 critics)
 
 The deployed action of every algorithm is ``tanh(loc)`` (TanhNormal's deterministic sample), which
-is what :mod:`falcon_rl.objectives.export` bakes into a policy file.
+is what :mod:`falcon_rl.recipes.export` bakes into a policy file.
 """
 
 from __future__ import annotations
