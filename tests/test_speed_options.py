@@ -40,8 +40,8 @@ def test_warp_threaded_slices_are_bit_identical(turbulence):
     for threads in (1, 3):
         sim = Simulator("volantex_ranger", num_envs=50, backend="warp", turbulence=turbulence, seed=4,
                         warp_cpu_threads=threads)
-        assert sim._engine.threads == threads
-        assert len(sim._engine.slices) == (1 if threads == 1 else threads * CHUNKS_PER_THREAD)
+        assert sim.engine.threads == threads
+        assert len(sim.engine.slices) == (1 if threads == 1 else threads * CHUNKS_PER_THREAD)
         _perturbed(sim)
         command = torch.linspace(-0.5, 0.5, 50).unsqueeze(-1).expand(50, 4).contiguous()
         for _ in range(30):

@@ -20,6 +20,7 @@ from ._warp import warp_func, warp_struct, wp
 from .actuators import actuator_derivative, actuator_derivative_wp, saturate, saturate_wp
 from .aero import aero_forces, aero_forces_wp
 from .atmosphere import isa_density, isa_density_wp
+from .derived import pack_derived
 from .params import ModelParams, Vec6, WarpParams
 from .propulsion import propulsion_forces, propulsion_forces_wp
 from .rotations import (
@@ -27,6 +28,7 @@ from .rotations import (
     normalize_quaternion_wp,
     quaternion_derivative,
     quaternion_derivative_wp,
+    quaternion_to_euler,
     rotation_matrix,
     rotation_matrix_wp,
 )
@@ -146,13 +148,24 @@ def project(x: torch.Tensor, p: ModelParams) -> torch.Tensor:
                       x[:, S.VELOCITY], x[:, S.ANGULAR_RATE], pos, rate, thr], dim=-1)
 
 
-def ground_contact(ev: Evaluation, p: ModelParams) -> torch.Tensor:
-    """[N] bool: the CG or a wing tip (quarter chord, +-b/2) is at or below the ground.
+def lowest_tip_height(ev: Evaluation, p: ModelParams) -> torch.Tensor:
+    """[N] m: height of the lower wing tip. The tips sit at the quarter-chord point +-b/2 along
+    body y, so their heights are wing_height -+ (b/2) R[2, 1]; the lower one is
+    wing_height - (b/2) |R[2, 1]|."""
+    return ev.wing_height - 0.5 * p.span * ev.rotation[:, 2, 1].abs()
 
-    The tips sit at the quarter-chord point +-b/2 along body y, so their heights are
-    wing_height -+ (b/2) R[2, 1]; the lower one is wing_height - (b/2) |R[2, 1]|."""
-    lowest_tip = ev.wing_height - 0.5 * p.span * ev.rotation[:, 2, 1].abs()
-    return (ev.height <= 0.0) | (lowest_tip <= 0.0)
+
+def derived_columns(x: torch.Tensor, p: ModelParams, air: AirInputs | None = None) -> torch.Tensor:
+    """[N, DERIVED_WIDTH] derived state of x [N, S] in the columns of ``derived.DERIVED_FIELDS``
+    (the torch twin of ``warp_kernels.evaluate_kernel``)."""
+    ev = evaluate(x, p, air)
+    return pack_derived({
+        "airspeed": ev.airspeed, "alpha": ev.alpha, "beta": ev.beta, "height": ev.height,
+        "wing_height": ev.wing_height, "surface_position": ev.surfaces, "thrust": ev.thrust.sum(-1),
+        "aero_coefficients": ev.coefficients, "lowest_tip_height": lowest_tip_height(ev, p),
+        "velocity_ned": (ev.rotation * x[:, S.VELOCITY].unsqueeze(1)).sum(dim=-1),
+        "euler": quaternion_to_euler(x[:, S.QUATERNION]),
+    })
 
 
 # ---------------------------------------------------------------------------------------- warp twins

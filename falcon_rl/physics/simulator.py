@@ -3,9 +3,12 @@
     sim = Simulator(load_airframe("navion"), num_envs=1024)
     sim.reset()                      # trimmed level flight at cruise, 100 m
     sim.step(commands)               # commands [N, 4] in [-1, 1]: elevator, aileron, rudder, throttle
+    sim.step(commands, substeps=5)   # five steps of dt under the same commands, inside the engine
     td = sim.state                   # TensorDict of named fields, batch [N]: td["height"], ...
 
-State lives in one preallocated tensor updated in place; ``state`` returns clones.
+The facade checks inputs, composes initial states and names the outputs; an engine
+(``engine.ENGINES[backend]``) owns the buffers and does the stepping. State lives in the engine's
+preallocated tensors updated in place; ``state`` returns clones.
 """
 
 from __future__ import annotations
@@ -17,15 +20,16 @@ from tensordict import TensorDict
 
 from ..airframe import Airframe, load_airframe
 from . import state as S
-from .aero import monomial_plan
-from .dynamics import AirInputs, derivative, evaluate, ground_contact, project
+from .derived import split_derived
+from .dynamics import AirInputs, project
+from .engine import ENGINES, Engine, EngineSetup, engine_class
 from .integrators import INTEGRATORS
-from .params import build_params
-from .rotations import euler_to_quaternion, ned_to_body, quaternion_to_euler
+from .params import ModelParams, build_params
+from .rotations import euler_to_quaternion
 from .trim import trim_level
-from .wind import Turbulence, TurbulenceConfig, dryden_step, turbulence_config
+from .wind import Turbulence, TurbulenceConfig, turbulence_config
 
-BACKENDS = ("torch", "warp", "scipy")
+BACKENDS = tuple(ENGINES)
 DEFAULT_HEIGHT = 100.0
 
 
@@ -72,8 +76,6 @@ class Simulator:
     ):
         if isinstance(airframe, str):
             airframe = load_airframe(airframe)
-        if backend not in BACKENDS:
-            raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
         if integrator not in INTEGRATORS:
             raise ValueError(f"integrator must be one of {list(INTEGRATORS)}, got {integrator!r}")
         if not num_envs >= 1:
@@ -82,45 +84,107 @@ class Simulator:
             raise ValueError(f"dt must be > 0, got {dt}")
         if warp_cpu_threads is not None and not warp_cpu_threads >= 1:
             raise ValueError(f"warp_cpu_threads must be None or >= 1, got {warp_cpu_threads}")
-        if backend == "scipy":
-            if num_envs != 1:
-                raise ValueError("the scipy reference backend runs exactly one env")
-            device, dtype = "cpu", torch.float64
+        engine_cls = engine_class(backend)
+        options = {"compile": compile or None, "cpu_threads": warp_cpu_threads}
+        options = {name: value for name, value in options.items() if value is not None}
+        if compile and "compile" not in engine_cls.OPTIONS:
+            raise ValueError(f"compile=True applies to the torch backend, not {backend!r}")
+        device, dtype = engine_cls.placement(num_envs, torch.device(device), dtype)
         self.airframe = airframe
         self.num_envs = num_envs
         self.backend = backend
-        self.device = torch.device(device)
+        self.device = device
         self.dtype = dtype
-        self.dt = float(dt)
-        self.integrator = integrator
         self.check_inputs = check_inputs
-        self.warp_cpu_threads = warp_cpu_threads
-        if compile and backend != "torch":
-            raise ValueError(f"compile=True applies to the torch backend, not {backend!r}")
-        self.compile = compile
         self.layout = S.StateLayout(airframe.num_motors)
-        self.params = build_params(airframe, num_envs, self.device, dtype, ground_effect)
-        self.generator = torch.Generator(device=self.device).manual_seed(seed)
-        self.x = torch.zeros(num_envs, self.layout.size, device=self.device, dtype=dtype)
-        self.command = torch.zeros(num_envs, S.NUM_CONTROLS, device=self.device, dtype=dtype)
-        self.wind_ned = torch.zeros(num_envs, 3, device=self.device, dtype=dtype)
+        params = build_params(airframe, num_envs, device, dtype, ground_effect)
+        self.engine: Engine = engine_cls(EngineSetup(
+            airframe=airframe, params=params, num_envs=num_envs, device=device, dtype=dtype, dt=float(dt),
+            integrator=integrator, turbulence=turbulence_config(turbulence), seed=seed,
+            options={k: v for k, v in options.items() if k in engine_cls.OPTIONS}))
         if wind is not None:
-            self.wind_ned[:] = torch.as_tensor(wind, dtype=dtype, device=self.device)
-        self.gust_velocity_body = torch.zeros(num_envs, 3, device=self.device, dtype=dtype)
-        self.gust_rate_body = torch.zeros(num_envs, 3, device=self.device, dtype=dtype)
-        self.time = torch.zeros(num_envs, device=self.device, dtype=dtype)
-        config = turbulence_config(turbulence)
-        self.turbulence: Turbulence | None = (
-            None if config is None else Turbulence(config, num_envs, self.device, dtype, seed))
+            self.wind_ned[:] = torch.as_tensor(wind, dtype=dtype, device=device)
         self._default: torch.Tensor | None = None
         self._default_command: torch.Tensor | None = None
-        self._engine = _make_engine(self)
         self.reset()
+
+    # ------------------------------------------------------------------ the engine's buffers
+    @property
+    def x(self) -> torch.Tensor:
+        """[N, S] integrated state (the engine's buffer, in place)."""
+        return self.engine.x
+
+    @property
+    def command(self) -> torch.Tensor:
+        """[N, 4] command held over the current step."""
+        return self.engine.command
+
+    @property
+    def time(self) -> torch.Tensor:
+        """[N] s since each env's reset."""
+        return self.engine.time
+
+    @property
+    def wind_ned(self) -> torch.Tensor:
+        """[N, 3] m/s steady wind (write in place)."""
+        return self.engine.wind_ned
+
+    @property
+    def gust_velocity_body(self) -> torch.Tensor:
+        """[N, 3] m/s Dryden gusts over the current step."""
+        return self.engine.gust_velocity_body
+
+    @property
+    def gust_rate_body(self) -> torch.Tensor:
+        """[N, 3] rad/s Dryden angular gusts over the current step."""
+        return self.engine.gust_rate_body
+
+    @property
+    def params(self) -> ModelParams:
+        """Per-env model parameters [N, ...] (write with ``params.assign``)."""
+        return self.engine.params
+
+    @params.setter
+    def params(self, value: ModelParams) -> None:
+        self.engine.params = value
+
+    @property
+    def turbulence(self) -> Turbulence | None:
+        """The Dryden state (``filter`` [N, 8], ``w20`` [N], ...), or None when off."""
+        return self.engine.turbulence
+
+    @property
+    def generator(self) -> torch.Generator:
+        """This simulator's generator (torch Dryden noise)."""
+        return self.engine.generator
+
+    @property
+    def dt(self) -> float:
+        """Step length, s (settable: the engine re-binds on its next step)."""
+        return self.engine.dt
+
+    @dt.setter
+    def dt(self, value: float) -> None:
+        if not value > 0:
+            raise ValueError(f"dt must be > 0, got {value}")
+        self.engine.dt = float(value)
+
+    @property
+    def integrator(self) -> str:
+        """"rk4" or "euler" (the scipy backend integrates with solve_ivp)."""
+        return self.engine.integrator
+
+    @integrator.setter
+    def integrator(self, value: str) -> None:
+        if value not in INTEGRATORS:
+            raise ValueError(f"integrator must be one of {list(INTEGRATORS)}, got {value!r}")
+        self.engine.integrator = value
 
     # ------------------------------------------------------------------ state
     @property
     def air(self) -> AirInputs:
-        return AirInputs(self.wind_ned, self.gust_velocity_body, self.gust_rate_body)
+        """Wind and gusts as the dynamics sees them (views of the engine's buffers)."""
+        return self.engine.air
 
     def default_initial(self) -> tuple[torch.Tensor, torch.Tensor]:
         """(state [S], command [4]) of trimmed level flight at cruise speed and 100 m."""
@@ -149,25 +213,14 @@ class Simulator:
         new_cmd = base_cmd.expand(n, -1).clone()
         if isinstance(initial, torch.Tensor):
             new_x[:] = initial.to(self.device, self.dtype)
+            if not torch.isfinite(new_x).all():
+                raise ValueError("initial state contains NaN or Inf")
         elif initial is not None:
             new_x, new_cmd = self._compose_initial(initial, new_x, new_cmd)
         new_x = project(new_x, self.params)
-        if mask is None:
-            self.x.copy_(new_x)
-            self.command.copy_(new_cmd)
-            self.time.zero_()
-            self.gust_velocity_body.zero_()
-            self.gust_rate_body.zero_()
-        else:
-            mask = mask.to(self.device).reshape(n)
-            self.x[mask] = new_x[mask]
-            self.command[mask] = new_cmd[mask]
-            self.time[mask] = 0.0
-            self.gust_velocity_body.masked_fill_(mask[:, None], 0.0)
-            self.gust_rate_body.masked_fill_(mask[:, None], 0.0)
-        if self.turbulence is not None:
-            self.turbulence.reset(mask)
-        self._engine.after_reset(mask)
+        if mask is not None:
+            mask = torch.as_tensor(mask, device=self.device).reshape(n).bool()
+        self.engine.reset(new_x, new_cmd, mask)
         return self.state
 
     def _compose_initial(self, initial: Mapping[str, torch.Tensor], x: torch.Tensor,
@@ -199,17 +252,32 @@ class Simulator:
             x[:, S.SURFACE_POSITION] = val("surface_position")
             x[:, S.SURFACE_RATE] = 0.0
         if "throttle" in initial:
-            thr = val("throttle")
-            x[:, self.layout.throttle] = thr.unsqueeze(-1) if thr.dim() == 1 else thr
+            x[:, self.layout.throttle] = self._throttle_rows(val("throttle"))
         if "command" in initial:
             cmd[:] = val("command")
         if not torch.isfinite(x).all():
             raise ValueError("initial state contains NaN or Inf")
         return x, cmd
 
+    def _throttle_rows(self, throttle: torch.Tensor) -> torch.Tensor:
+        """Initial throttle states as [N, M]: from [M] (one row for all envs), [N, M], or, with one
+        motor only, [N] (one value per env) or a scalar."""
+        n, m = self.num_envs, self.airframe.num_motors
+        if throttle.dim() == 0:
+            throttle = throttle.expand(m)
+        if throttle.dim() == 1 and throttle.shape[0] == m:
+            return throttle.expand(n, m)
+        if throttle.dim() == 1 and m == 1 and throttle.shape[0] == n:
+            return throttle.unsqueeze(-1)
+        if throttle.dim() == 2 and throttle.shape[-1] == m and throttle.shape[0] in (1, n):
+            return throttle.expand(n, m)
+        raise ValueError(f"initial throttle must be [{m}] or [{n}, {m}] for {self.airframe.name!r} "
+                         f"({m} motor{'s' if m > 1 else ''}), got {list(throttle.shape)}")
+
     # ------------------------------------------------------------------ stepping
-    def step(self, commands: torch.Tensor) -> None:
-        """Advance all envs by dt under ``commands`` [N, 4] in [-1, 1] (clipped).
+    def step(self, commands: torch.Tensor, substeps: int = 1) -> None:
+        """Advance all envs by ``substeps`` x dt under ``commands`` [N, 4] in [-1, 1] (clipped, held
+        over the sub-steps, which run inside the engine).
 
         Read the result from :attr:`state` (kept off the hot path: stepping allocates nothing
         beyond the integrator's temporaries)."""
@@ -221,55 +289,24 @@ class Simulator:
             if not torch.isfinite(commands).all():
                 bad = (~torch.isfinite(commands)).any(-1).nonzero().flatten().tolist()
                 raise ValueError(f"commands contain NaN or Inf for envs {bad[:10]}")
-        torch.clamp(commands.detach(), -1.0, 1.0, out=self.command)  # the step is not differentiable
-        if self.turbulence is not None and self.backend != "warp":  # warp: inside the step kernel
-            self.advance_turbulence()
-        self._engine.step()  # advances x and time (on warp both inside the step kernel)
-
-    def advance_turbulence(self) -> None:
-        """Advance the Dryden filters once (torch) at the current height and mean-air airspeed and
-        write the gusts that act over the coming step into ``gust_velocity_body`` / ``gust_rate_body``."""
-        turb = self.turbulence
-        assert turb is not None
-        if not turb.external_noise:
-            turb.noise.normal_(generator=self.generator)
-        x = self.x
-        v_air = x[:, S.VELOCITY] - ned_to_body(x[:, S.QUATERNION], self.wind_ned)
-        airspeed = torch.linalg.vector_norm(v_air, dim=-1)
-        filt, gust_v, gust_w = dryden_step(turb.filter, turb.noise, self.gust_velocity_body, turb.w20,
-                                           -x[:, 2], airspeed, self.params.span, self.dt)
-        turb.filter.copy_(filt)
-        self.gust_velocity_body.copy_(gust_v)
-        self.gust_rate_body.copy_(gust_w)
+            if not (isinstance(substeps, int) and substeps >= 1):
+                raise ValueError(f"substeps must be an int >= 1, got {substeps!r}")
+        self.engine.step(commands, substeps)
 
     def reseed(self, seed: int) -> None:
-        """Reseed the generator and the Warp turbulence streams."""
-        self.generator.manual_seed(int(seed))
-        if self.turbulence is not None:
-            self.turbulence.reseed(int(seed))
-
-    def advance_torch(self, x: torch.Tensor, command: torch.Tensor) -> torch.Tensor:
-        """One torch integration step of x [N, S] (not in place); used by engines and MPPI."""
-        air = self.air
-
-        def f(xx: torch.Tensor) -> torch.Tensor:
-            return derivative(xx, command, self.params, air)
-
-        return project(INTEGRATORS[self.integrator](f, x, self.dt), self.params)
+        """Reseed the generator and the turbulence noise streams."""
+        self.engine.reseed(seed)
 
     @property
     def state(self) -> TensorDict:
-        """Named fields of the current state (clones), batch [N]. On the warp backend the derived
-        quantities (air data, forces' coefficients, thrust, contact) come from one kernel launch."""
+        """Named fields of the current state (clones), batch [N]; the derived quantities (air data,
+        coefficients, thrust, contact, Euler angles) come from the engine (``derived.DERIVED_FIELDS``,
+        on warp one kernel launch)."""
         x = self.x
-        q = x[:, S.QUATERNION]
-        derived = self._engine.derived_state() if self.backend == "warp" else self._torch_derived()
-        euler = derived.pop("euler") if "euler" in derived else quaternion_to_euler(q)
         return TensorDict(
             {
                 "position_ned": x[:, S.POSITION].clone(),
-                "quaternion": q.clone(),
-                "euler": euler,
+                "quaternion": x[:, S.QUATERNION].clone(),
                 "velocity_body": x[:, S.VELOCITY].clone(),
                 "angular_rate_body": x[:, S.ANGULAR_RATE].clone(),
                 "surface_rate": x[:, S.SURFACE_RATE].clone(),
@@ -278,86 +315,8 @@ class Simulator:
                 "time": self.time.clone(),
                 "gust_velocity_body": self.gust_velocity_body.clone(),
                 "gust_rate_body": self.gust_rate_body.clone(),
-                **derived,
+                **split_derived(self.engine.derived()),
             },
             batch_size=[self.num_envs],
             device=self.device,
         )
-
-    def _torch_derived(self) -> dict[str, torch.Tensor]:
-        ev = evaluate(self.x, self.params, self.air)
-        return {
-            "velocity_ned": (ev.rotation @ self.x[:, S.VELOCITY].unsqueeze(-1)).squeeze(-1),
-            "airspeed": ev.airspeed,
-            "alpha": ev.alpha,
-            "beta": ev.beta,
-            "height": ev.height,
-            "wing_height": ev.wing_height,
-            "surface_position": ev.surfaces,
-            "thrust": ev.thrust.sum(-1),
-            "aero_coefficients": ev.coefficients,
-            "ground_contact": ground_contact(ev, self.params),
-        }
-
-
-class _TorchEngine:
-    """Steps ``sim.x`` with the torch model; ``step`` advances the state and the clock by dt."""
-
-    def __init__(self, sim: Simulator):
-        self.sim = sim
-
-    def step(self) -> None:
-        self.advance()
-        self.sim.time += self.sim.dt
-
-    def advance(self) -> None:
-        sim = self.sim
-        sim.x.copy_(sim.advance_torch(sim.x, sim.command))
-
-    def after_reset(self, mask: torch.Tensor | None) -> None:
-        pass
-
-
-class _CompiledTorchEngine(_TorchEngine):
-    """The torch step through ``torch.compile`` (graph re-traced when dt or the integrator change)."""
-
-    def __init__(self, sim: Simulator):
-        super().__init__(sim)
-        monomial_plan(sim.params.aero_exponents)  # warm the plan cache outside the graph
-        self._compiled = torch.compile(sim.advance_torch, dynamic=False)
-
-    def advance(self) -> None:
-        sim = self.sim
-        sim.x.copy_(self._compiled(sim.x, sim.command))
-
-
-class _ScipyEngine(_TorchEngine):
-    """Reference: ``solve_ivp`` (RK45, rtol 1e-10, atol 1e-10) over each step, float64."""
-
-    def advance(self) -> None:
-        import numpy as np
-        from scipy.integrate import solve_ivp
-
-        sim = self.sim
-        command = sim.command.clone()
-        air = sim.air
-
-        def f(_t: float, y: np.ndarray) -> np.ndarray:
-            xx = torch.from_numpy(y).reshape(1, -1)
-            return derivative(xx, command, sim.params, air).reshape(-1).numpy()
-
-        sol = solve_ivp(f, (0.0, sim.dt), sim.x[0].numpy(), method="RK45", rtol=1e-10, atol=1e-10)
-        if not sol.success:
-            raise RuntimeError(f"solve_ivp failed: {sol.message}")
-        y = torch.from_numpy(sol.y[:, -1]).reshape(1, -1)
-        sim.x.copy_(project(y, sim.params))
-
-
-def _make_engine(sim: Simulator) -> _TorchEngine:
-    if sim.backend == "scipy":
-        return _ScipyEngine(sim)
-    if sim.backend == "warp":
-        from .warp_backend import WarpEngine
-
-        return WarpEngine(sim)
-    return _CompiledTorchEngine(sim) if sim.compile else _TorchEngine(sim)

@@ -5,7 +5,7 @@ The state is read from and written back to the simulator's [N, S] float32 tensor
 inside the kernel one env's row is a padded :data:`StateVec`. Importing this module imports Warp but
 compiles nothing: Warp builds the module on the first launch and caches the binary on disk.
 
-There is no reset kernel: resets are masked writes that the Simulator makes to the same memory.
+There is no reset kernel: resets are masked writes that the engine makes to the same memory.
 The Dryden turbulence update (``wind.dryden_step_wp``) runs at the start of the step kernel, once per
 step, so the gusts it writes act over the whole step.
 """
@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import warp as wp
 
+from .derived import DERIVED_OFFSET
 from .dynamics import derivative_wp, evaluate_wp, project_wp
 from .params import WarpParams
 from .rotations import quaternion_to_euler_wp, rotation_matrix_wp
@@ -54,10 +55,12 @@ def flush_denormals_end(saved: int):
 
 
 INTEGRATOR_CODES = {"euler": 0, "rk4": 1}
-#: Columns of :func:`evaluate_kernel`'s output row.
-EVALUATION_COLUMNS = ("airspeed", "alpha", "beta", "height", "wing_height", "surface_e", "surface_a",
-                      "surface_r", "thrust", "CL", "CD", "CY", "Cl", "Cm", "Cn", "lowest_tip_height",
-                      "velocity_n", "velocity_e", "velocity_d", "roll", "pitch", "yaw")
+# First columns of the derived fields in :func:`evaluate_kernel`'s output row (``derived.py``).
+_AIRSPEED, _ALPHA, _BETA = DERIVED_OFFSET["airspeed"], DERIVED_OFFSET["alpha"], DERIVED_OFFSET["beta"]
+_HEIGHT, _WING_HEIGHT = DERIVED_OFFSET["height"], DERIVED_OFFSET["wing_height"]
+_SURFACES, _THRUST = DERIVED_OFFSET["surface_position"], DERIVED_OFFSET["thrust"]
+_COEFFICIENTS, _LOWEST_TIP = DERIVED_OFFSET["aero_coefficients"], DERIVED_OFFSET["lowest_tip_height"]
+_VELOCITY_NED, _EULER = DERIVED_OFFSET["velocity_ned"], DERIVED_OFFSET["euler"]
 #: Turbulence modes of the step kernel: off, noise from the Warp streams, noise read from an array.
 TURBULENCE_OFF, TURBULENCE_RANDOM, TURBULENCE_EXTERNAL = 0, 1, 2
 
@@ -75,9 +78,10 @@ def load_state(x: wp.array2d(dtype=wp.float32), i: int, size: int) -> StateVec:
 def advance_turbulence(s: StateVec, wind: wp.vec3, i: int, gust_velocity_body: wp.array(dtype=wp.vec3),
                        gust_rate_body: wp.array(dtype=wp.vec3), turb_filter: wp.array2d(dtype=wp.float32),
                        turb_w20: wp.array(dtype=wp.float32), turb_noise: wp.array2d(dtype=wp.float32),
-                       turb_rng: wp.array(dtype=wp.int32), turb_mode: int, span: float, dt: float):
+                       rng_seed: int, rng_counter: int, turb_mode: int, span: float, dt: float):
     """One Dryden step of env ``i`` at its height and mean-air airspeed (twin of
-    ``Simulator.advance_turbulence``): updates the filter row and the gust arrays in place."""
+    ``TorchEngine.advance_turbulence``), noise stream (rng_seed, rng_counter): updates the filter row and
+    the gust arrays in place."""
     q = wp.vec4(s[QUATERNION_START], s[QUATERNION_START + 1], s[QUATERNION_START + 2],
                 s[QUATERNION_START + 3])
     vel = wp.vec3(s[VELOCITY_START], s[VELOCITY_START + 1], s[VELOCITY_START + 2])
@@ -87,7 +91,7 @@ def advance_turbulence(s: StateVec, wind: wp.vec3, i: int, gust_velocity_body: w
         for k in range(NUM_NOISE):
             noise[k] = turb_noise[i, k]
     else:
-        stream = wp.rand_init(turb_rng[0], turb_rng[1])
+        stream = wp.rand_init(rng_seed, rng_counter)
         rng = wp.rand_init(wp.randi(stream), i)
         for k in range(NUM_NOISE):
             noise[k] = wp.randn(rng)
@@ -118,16 +122,18 @@ def step_kernel(
     turb_noise: wp.array2d(dtype=wp.float32),
     turb_rng: wp.array(dtype=wp.int32),
     turb_mode: int,
+    substeps: int,
     offset: int,
 ):
-    """x[i] <- project(integrate(x[i], dt)) and time[i] += dt for env i = offset + tid, command held
-    over the step.
+    """``substeps`` times: x[i] <- project(integrate(x[i], dt)) and time[i] += dt, for env
+    i = offset + tid, command held over the sub-steps.
 
     x: [N, S] state (in place). time: [N] s (in place). command: [N] normalised commands.
     wind_ned, gust_*: [N] air motion.
     integrator: 0 Euler, 1 classic RK4 (same stage arithmetic as ``integrators.rk4_step``).
     turb_*: Dryden state (filter [N, 8], W20 [N], noise [N, 6], rng (seed, step) [2]); with
-    turb_mode != 0 the gusts are advanced first (noise from the streams or read from turb_noise).
+    turb_mode != 0 the gusts are advanced at the start of each sub-step (noise from the streams, sub-step
+    k at counter turb_rng[1] - substeps + 1 + k, or read from turb_noise).
     offset: first env of this launch (a CPU batch is split into slices stepped by parallel threads).
     """
     i = wp.tid() + offset
@@ -136,24 +142,28 @@ def step_kernel(
     s = load_state(x, i, size)
     u = command[i]
     wind = wind_ned[i]
-    if turb_mode != TURBULENCE_OFF:
-        advance_turbulence(s, wind, i, gust_velocity_body, gust_rate_body, turb_filter, turb_w20, turb_noise,
-                           turb_rng, turb_mode, p.span[i], dt)
-    gv = gust_velocity_body[i]
-    gw = gust_rate_body[i]
-    k1 = derivative_wp(s, u, wind, gv, gw, p, i)
-    y = StateVec()
-    if integrator == 0:
-        y = s + dt * k1
-    else:
-        k2 = derivative_wp(s + (0.5 * dt) * k1, u, wind, gv, gw, p, i)
-        k3 = derivative_wp(s + (0.5 * dt) * k2, u, wind, gv, gw, p, i)
-        k4 = derivative_wp(s + dt * k3, u, wind, gv, gw, p, i)
-        y = s + (dt / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
-    y = project_wp(y, p, i)
+    t = time[i]
+    for k in range(substeps):
+        if turb_mode != TURBULENCE_OFF:
+            advance_turbulence(s, wind, i, gust_velocity_body, gust_rate_body, turb_filter, turb_w20,
+                               turb_noise, turb_rng[0], turb_rng[1] - substeps + 1 + k, turb_mode, p.span[i],
+                               dt)
+        gv = gust_velocity_body[i]
+        gw = gust_rate_body[i]
+        k1 = derivative_wp(s, u, wind, gv, gw, p, i)
+        y = StateVec()
+        if integrator == 0:
+            y = s + dt * k1
+        else:
+            k2 = derivative_wp(s + (0.5 * dt) * k1, u, wind, gv, gw, p, i)
+            k3 = derivative_wp(s + (0.5 * dt) * k2, u, wind, gv, gw, p, i)
+            k4 = derivative_wp(s + dt * k3, u, wind, gv, gw, p, i)
+            y = s + (dt / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+        s = project_wp(y, p, i)
+        t = t + dt
     for k in range(size):
-        x[i, k] = y[k]
-    time[i] = time[i] + dt
+        x[i, k] = s[k]
+    time[i] = t
     flush_denormals_end(saved)
 
 
@@ -188,9 +198,8 @@ def evaluate_kernel(
     out: wp.array2d(dtype=wp.float32),
     offset: int,
 ):
-    """out[i] <- the observable quantities of env i = offset + tid (:data:`EVALUATION_COLUMNS`),
-    twin of what ``Simulator.state`` reads from ``dynamics.evaluate`` and ``quaternion_to_euler``:
-    one launch (per CPU slice) instead of the torch model."""
+    """out[i] <- the derived state of env i = offset + tid in the columns of ``derived.DERIVED_FIELDS``
+    (twin of ``dynamics.derived_columns``): one launch (per CPU slice) instead of the torch model."""
     i = wp.tid() + offset
     saved = flush_denormals_begin()
     s = load_state(x, i, x.shape[1])
@@ -200,16 +209,17 @@ def evaluate_kernel(
     euler = quaternion_to_euler_wp(wp.vec4(s[QUATERNION_START], s[QUATERNION_START + 1],
                                            s[QUATERNION_START + 2], s[QUATERNION_START + 3]))
     half_span_roll = 0.5 * p.span[i] * wp.abs(rot[2, 1])
-    values = wp.vec3(ev.airspeed, ev.alpha, ev.beta)
+    out[i, _AIRSPEED] = ev.airspeed
+    out[i, _ALPHA] = ev.alpha
+    out[i, _BETA] = ev.beta
+    out[i, _HEIGHT] = ev.height
+    out[i, _WING_HEIGHT] = ev.wing_height
+    out[i, _THRUST] = ev.thrust
+    out[i, _LOWEST_TIP] = ev.wing_height - half_span_roll
     for k in range(3):
-        out[i, k] = values[k]
-        out[i, 5 + k] = ev.surfaces[k]
-        out[i, 16 + k] = vel_ned[k]
-        out[i, 19 + k] = euler[k]
-    out[i, 3] = ev.height
-    out[i, 4] = ev.wing_height
-    out[i, 8] = ev.thrust
+        out[i, _SURFACES + k] = ev.surfaces[k]
+        out[i, _VELOCITY_NED + k] = vel_ned[k]
+        out[i, _EULER + k] = euler[k]
     for k in range(6):
-        out[i, 9 + k] = ev.coefficients[k]
-    out[i, 15] = ev.wing_height - half_span_roll
+        out[i, _COEFFICIENTS + k] = ev.coefficients[k]
     flush_denormals_end(saved)

@@ -1,0 +1,68 @@
+"""The derived state: what every engine computes from its state for ``Simulator.state``, declared once.
+
+Each engine's ``derived()`` returns one [N, DERIVED_WIDTH] tensor whose columns follow
+:data:`DERIVED_FIELDS` (name, width); the Warp evaluation kernel writes the same columns at the
+offsets :data:`DERIVED_OFFSET` gives, and :func:`split_derived` names them for the facade. Adding a
+derived quantity is one row here plus the line that computes it in each backend
+(``dynamics.derived_columns`` and ``warp_kernels.evaluate_kernel``), checked by the parity tests.
+
+    airspeed [N]           m/s, air-relative speed
+    alpha, beta [N]        rad, aerodynamic angles (wind and gusts included)
+    height [N]             m, CG height above the flat ground (-z)
+    wing_height [N]        m, height of the wing quarter chord (attitude included)
+    surface_position [N, 3] rad, deflections clamped to the actuator limits
+    thrust [N]             N, total thrust of all motors
+    aero_coefficients [N, 6] C_L, C_D, C_Y, C_l, C_m, C_n (ground effect included)
+    lowest_tip_height [N]  m, the lower wing tip (quarter chord +-b/2) above ground
+    velocity_ned [N, 3]    m/s, inertial velocity in NED
+    euler [N, 3]           rad, aerospace ZYX roll, pitch, yaw
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import torch
+
+#: (name, width) of each derived field, in column order.
+DERIVED_FIELDS: tuple[tuple[str, int], ...] = (
+    ("airspeed", 1), ("alpha", 1), ("beta", 1), ("height", 1), ("wing_height", 1),
+    ("surface_position", 3), ("thrust", 1), ("aero_coefficients", 6), ("lowest_tip_height", 1),
+    ("velocity_ned", 3), ("euler", 3),
+)
+#: First column of each derived field.
+DERIVED_OFFSET: dict[str, int] = dict(zip(
+    (name for name, _ in DERIVED_FIELDS),
+    itertools.accumulate((width for _, width in DERIVED_FIELDS), initial=0), strict=False))
+#: Columns of the derived tensor.
+DERIVED_WIDTH: int = sum(width for _, width in DERIVED_FIELDS)
+
+
+def ground_contact(height: torch.Tensor, lowest_tip_height: torch.Tensor) -> torch.Tensor:
+    """[N] bool: the CG or the lower wing tip is at or below the ground (the one definition)."""
+    return (height <= 0.0) | (lowest_tip_height <= 0.0)
+
+
+def pack_derived(fields: dict[str, torch.Tensor]) -> torch.Tensor:
+    """[N, DERIVED_WIDTH] from named fields ([N] or [N, width]), in :data:`DERIVED_FIELDS` order."""
+    columns = []
+    for name, width in DERIVED_FIELDS:
+        value = fields[name]
+        value = value.unsqueeze(-1) if value.dim() == 1 else value
+        if value.shape[-1] != width:
+            raise ValueError(f"derived field {name!r} has width {value.shape[-1]}, declared {width}")
+        columns.append(value)
+    return torch.cat(columns, dim=-1)
+
+
+def split_derived(derived: torch.Tensor) -> dict[str, torch.Tensor]:
+    """Named fields (fresh tensors, [N] for width 1) of a [N, DERIVED_WIDTH] tensor, plus
+    ``ground_contact`` [N] bool."""
+    if derived.shape[-1] != DERIVED_WIDTH:
+        raise ValueError(f"derived tensor has {derived.shape[-1]} columns, expected {DERIVED_WIDTH}")
+    out = {}
+    for name, width in DERIVED_FIELDS:
+        start = DERIVED_OFFSET[name]
+        out[name] = (derived[:, start] if width == 1 else derived[:, start:start + width]).clone()
+    out["ground_contact"] = ground_contact(out["height"], out["lowest_tip_height"])
+    return out

@@ -1,0 +1,162 @@
+"""The backend contract: an engine owns one batch's buffers and advances them.
+
+    engine = engine_class("warp")(setup)       # setup: an EngineSetup (params, dt, integrator, ...)
+    engine.reset(initial_x, initial_command, mask)      # masked write of [N, S] and [N, 4]
+    engine.step(command, substeps)             # command [N, 4] in [-1, 1], held over the sub-steps
+    engine.derived()                           # [N, DERIVED_WIDTH], columns of derived.DERIVED_FIELDS
+
+Buffers (allocated by :class:`Engine`, updated in place, never replaced):
+
+    x                   [N, S]  integrated state (``state.StateLayout``)
+    command             [N, 4]  the command held over the current step (clipped to [-1, 1])
+    time                [N]     s since each env's reset
+    wind_ned            [N, 3]  m/s, steady wind
+    gust_velocity_body  [N, 3]  m/s, Dryden gusts acting over the current step
+    gust_rate_body      [N, 3]  rad/s
+    params              ModelParams, per-env tensors [N, ...] (domain randomisation writes them)
+    turbulence          the Dryden filter state, or None when turbulence is off
+    generator           this engine's torch generator (noise of the torch Dryden filters)
+
+A backend is one module with an :class:`Engine` subclass and one line in :data:`ENGINES`
+(``"name": "module:Class"``, imported on first use so that Warp is only loaded when asked for).
+Engines never import the :class:`~falcon_rl.physics.simulator.Simulator` facade.
+"""
+
+from __future__ import annotations
+
+import importlib
+from abc import ABC, abstractmethod
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import torch
+
+from ..airframe import Airframe
+from .dynamics import AirInputs
+from .params import ModelParams
+from .state import NUM_CONTROLS, StateLayout
+from .wind import Turbulence, TurbulenceConfig
+
+#: Registered backends: name -> "module:Class" (relative to ``falcon_rl.physics``).
+ENGINES: dict[str, str] = {
+    "torch": "torch_backend:TorchEngine",
+    "warp": "warp_backend:WarpEngine",
+    "scipy": "scipy_backend:ScipyEngine",
+}
+
+
+def engine_class(backend: str) -> type[Engine]:
+    """The engine class registered as ``backend`` (ValueError naming the registered ones)."""
+    if backend not in ENGINES:
+        raise ValueError(f"backend must be one of {tuple(ENGINES)}, got {backend!r}")
+    module, name = ENGINES[backend].split(":")
+    cls = getattr(importlib.import_module(f"{__package__}.{module}"), name)
+    assert issubclass(cls, Engine)
+    return cls
+
+
+@dataclass(frozen=True)
+class EngineSetup:
+    """Everything an engine is built from (the facade resolves names and defaults first)."""
+
+    airframe: Airframe
+    params: ModelParams
+    num_envs: int
+    device: torch.device
+    dtype: torch.dtype
+    dt: float
+    integrator: str
+    turbulence: TurbulenceConfig | None = None
+    seed: int = 0
+    #: Backend-specific options (e.g. ``compile`` for torch, ``cpu_threads`` for warp); an engine
+    #: raises on any name outside its ``OPTIONS``.
+    options: Mapping[str, Any] = field(default_factory=dict)
+
+
+class Engine(ABC):
+    """Base of the backends: owns the buffers listed in the module docstring."""
+
+    #: Backend-specific option names this engine accepts in ``EngineSetup.options``.
+    OPTIONS: ClassVar[tuple[str, ...]] = ()
+
+    @classmethod
+    def placement(cls, num_envs: int, device: torch.device, dtype: torch.dtype
+                  ) -> tuple[torch.device, torch.dtype]:
+        """(device, dtype) this backend runs a batch of ``num_envs`` on, given the requested ones;
+        raises ValueError when it cannot."""
+        return device, dtype
+
+    def __init__(self, setup: EngineSetup):
+        unknown = set(setup.options) - set(self.OPTIONS)
+        if unknown:
+            raise ValueError(f"options {sorted(unknown)} do not apply to the {type(self).__name__} "
+                             f"(it takes {list(self.OPTIONS) or 'none'})")
+        n, kw = setup.num_envs, {"device": setup.device, "dtype": setup.dtype}
+        self.setup = setup
+        self.num_envs = n
+        self.dt = float(setup.dt)
+        self.integrator = setup.integrator
+        self.layout = StateLayout(setup.airframe.num_motors)
+        self.params = setup.params
+        self.x = torch.zeros(n, self.layout.size, **kw)
+        self.command = torch.zeros(n, NUM_CONTROLS, **kw)
+        self.time = torch.zeros(n, **kw)
+        self.wind_ned = torch.zeros(n, 3, **kw)
+        self.gust_velocity_body = torch.zeros(n, 3, **kw)
+        self.gust_rate_body = torch.zeros(n, 3, **kw)
+        self.generator = torch.Generator(device=setup.device).manual_seed(setup.seed)
+        self.turbulence: Turbulence | None = (
+            None if setup.turbulence is None
+            else Turbulence(setup.turbulence, n, setup.device, setup.dtype, setup.seed))
+
+    @property
+    def air(self) -> AirInputs:
+        """The air-mass motion the dynamics sees (views of the wind and gust buffers)."""
+        return AirInputs(self.wind_ned, self.gust_velocity_body, self.gust_rate_body)
+
+    # ------------------------------------------------------------------ the contract
+    def step(self, command: torch.Tensor, substeps: int = 1) -> None:
+        """Advance every env by ``substeps`` steps of dt under ``command`` [N, 4] (clipped to
+        [-1, 1], detached: the step is not differentiable), state and clock in place."""
+        torch.clamp(command.detach(), -1.0, 1.0, out=self.command)
+        self.advance(int(substeps))
+
+    @abstractmethod
+    def advance(self, substeps: int) -> None:
+        """``substeps`` steps of dt under ``self.command``: Dryden gusts (when on), integration,
+        projection and the clock, in place."""
+
+    def reset(self, initial_x: torch.Tensor, initial_command: torch.Tensor,
+              mask: torch.Tensor | None = None) -> None:
+        """Write ``initial_x`` [N, S] and ``initial_command`` [N, 4] into the rows of ``mask`` [N]
+        bool (all when None); zero their clocks, gusts and Dryden filters. Other rows untouched."""
+        if mask is None:
+            self.x.copy_(initial_x)
+            self.command.copy_(initial_command)
+            self.time.zero_()
+            self.gust_velocity_body.zero_()
+            self.gust_rate_body.zero_()
+        else:
+            self.x[mask] = initial_x[mask]
+            self.command[mask] = initial_command[mask]
+            self.time.masked_fill_(mask, 0.0)
+            self.gust_velocity_body.masked_fill_(mask[:, None], 0.0)
+            self.gust_rate_body.masked_fill_(mask[:, None], 0.0)
+        if self.turbulence is not None:
+            self.turbulence.reset(mask)
+        self.after_reset()
+
+    def after_reset(self) -> None:
+        """Hook: a backend that binds views of the buffers re-checks them here."""
+        return None
+
+    @abstractmethod
+    def derived(self) -> torch.Tensor:
+        """[N, DERIVED_WIDTH] derived state of the current x (``derived.DERIVED_FIELDS``)."""
+
+    def reseed(self, seed: int) -> None:
+        """Reseed this engine's generator and the turbulence noise streams."""
+        self.generator.manual_seed(int(seed))
+        if self.turbulence is not None:
+            self.turbulence.reseed(int(seed))
