@@ -38,8 +38,9 @@ from .params import ModelParams
 from .state import NUM_CONTROLS, StateLayout
 from .wind import Turbulence, TurbulenceConfig
 
-#: Registered backends: name -> "module:Class" (relative to ``falcon_rl.physics``).
-ENGINES: dict[str, str] = {
+#: Registered backends: name -> "module:Class" (a bare module name is relative to ``falcon_rl.physics``;
+#: a dotted one is imported as written; an Engine subclass may also be registered directly).
+ENGINES: dict[str, str | type[Engine]] = {
     "torch": "torch_backend:TorchEngine",
     "warp": "warp_backend:WarpEngine",
     "scipy": "scipy_backend:ScipyEngine",
@@ -50,10 +51,14 @@ def engine_class(backend: str) -> type[Engine]:
     """The engine class registered as ``backend`` (ValueError naming the registered ones)."""
     if backend not in ENGINES:
         raise ValueError(f"backend must be one of {tuple(ENGINES)}, got {backend!r}")
-    module, name = ENGINES[backend].split(":")
-    cls = getattr(importlib.import_module(f"{__package__}.{module}"), name)
-    assert issubclass(cls, Engine)
-    return cls
+    entry = ENGINES[backend]
+    if isinstance(entry, str):
+        module, name = entry.split(":")
+        module = module if "." in module else f"{__package__}.{module}"
+        entry = getattr(importlib.import_module(module), name)
+    if not (isinstance(entry, type) and issubclass(entry, Engine)):
+        raise TypeError(f"backend {backend!r} is registered as {entry!r}, not an Engine subclass")
+    return entry
 
 
 @dataclass(frozen=True)
