@@ -15,6 +15,8 @@ from typing import Any
 
 import numpy as np
 
+from .constants import G0
+
 #: Largest power of one variable in an aero monomial (the Warp twin tabulates powers 0..6).
 MAX_EXPONENT = 6
 #: Aero model variables, in the order of the monomial exponent columns.
@@ -125,7 +127,7 @@ class Airframe:
 
     @property
     def weight(self) -> float:
-        return self.mass * 9.80665
+        return self.mass * G0
 
     def summary(self) -> dict[str, Any]:
         """One row of ``falcon-rl airframes``."""

@@ -9,9 +9,10 @@ import pytest
 import torch
 
 from falcon_rl import Simulator, make_env
-from falcon_rl.physics import engine as engine_module
+from falcon_rl.physics import backends
+from falcon_rl.physics.backends import engine_class
 from falcon_rl.physics.derived import DERIVED_FIELDS, DERIVED_WIDTH, split_derived
-from falcon_rl.physics.engine import Engine, engine_class
+from falcon_rl.physics.engine import Engine
 from falcon_rl.physics.torch_backend import TorchEngine
 
 
@@ -55,7 +56,7 @@ def test_bad_substeps_are_refused():
 
 
 def test_a_backend_is_one_class_and_one_registry_line(monkeypatch):
-    monkeypatch.setitem(engine_module.ENGINES, "half", HalfStepEngine)
+    monkeypatch.setitem(backends.ENGINES, "half", HalfStepEngine)
     assert engine_class("half") is HalfStepEngine
     sim = Simulator("navion", num_envs=3, backend="half", integrator="euler")
     ref = Simulator("navion", num_envs=3, backend="torch", integrator="euler", dt=0.005)

@@ -14,6 +14,7 @@ import torch
 pytest.importorskip("jsbsim")
 
 from falcon_rl.cli import main
+from falcon_rl.constants import FT, LBF, SLUG, SLUG_FT2
 from falcon_rl.physics.actuators import normalised_command
 from falcon_rl.physics.dynamics import derivative, evaluate
 from falcon_rl.physics.params import build_params
@@ -21,7 +22,6 @@ from falcon_rl.physics.rotations import euler_to_quaternion
 from falcon_rl.validation.jsbsim_compare import HEADLINE, Doublet, validate_jsbsim
 from falcon_rl.validation.jsbsim_export import COEFFICIENT, export_aircraft
 from falcon_rl.validation.jsbsim_fly import initialise_jsbsim, make_fdm
-from falcon_rl.validation.jsbsim_xml import FT, LBF, SLUG, SLUG_FT2
 
 # (height m, euler rad, velocity as fractions of cruise, rates rad/s, surfaces rad, throttle)
 STATES = [

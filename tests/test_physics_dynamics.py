@@ -155,7 +155,9 @@ def test_jacobians_match_finite_differences(navion):
     assert torch.allclose(lin.A, A_fd, atol=1e-6 * float(scale_a), rtol=1e-5)
     assert torch.allclose(lin.B, B_fd, atol=1e-6 * float(B_fd.abs().max()), rtol=1e-5)
     # Short-period pair of the Navion is stable and near Nelson's (about -2.5 +- 2.6j rad/s).
-    idx = [7, 9, 11, 4]  # u, w, q, quaternion y ~ theta/2
+    i = S.STATE_INDEX
+    idx = [i["velocity_body"][S.X], i["velocity_body"][S.Z], i["angular_rate_body"][S.PITCH],
+           i["quaternion"][2]]  # u, w, q, quaternion y ~ theta/2
     eig = torch.linalg.eigvals(lin.A[idx][:, idx])
     fastest = eig[eig.real.argmin()]
     assert -4.5 < float(fastest.real) < -1.5 and abs(float(fastest.imag)) > 1.0

@@ -11,15 +11,15 @@ from typing import Any
 import numpy as np
 
 from ..airframe import AERO_VARIABLES, parse_airframe
+from ..constants import DEG, G0
 from ..physics.atmosphere import isa_density
 from .aerobuildup import AeroModel
 from .envelope import envelope
 from .fit import CoefficientFit, evaluate, fit_tables
 from .geometry import GeometrySpec, load_geometry
 from .propulsion import momentum_constants
-from .sweep import ALPHA_RANGE_DEG, BETA_DEG, DEG, Sweep, run_sweep
+from .sweep import ALPHA_RANGE_DEG, BETA_DEG, Sweep, run_sweep
 
-G0 = 9.80665
 OFF_RANGE_WEIGHT = 0.1  # fit weight of sweep points beyond stall or below -5 deg alpha (1 between)
 CLEAN_WEIGHT = 10.0  # extra weight of the clean alpha sweep: it sets the base polynomial where trims live
 COEFFICIENTS = ("CL", "CD", "CY", "Cl", "Cm", "Cn")

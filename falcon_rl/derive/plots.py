@@ -10,9 +10,9 @@ import numpy as np
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
+from ..constants import DEG
 from .build import COEFFICIENTS, Derived
 from .fit import evaluate
-from .sweep import DEG
 
 # (coefficient, sweep group, x column, label): longitudinal against alpha, lateral against beta
 PANELS = (("CL", "alpha", 0, "alpha"), ("CD", "alpha", 0, "alpha"), ("Cm", "elevator", 0, "alpha"),

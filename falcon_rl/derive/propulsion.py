@@ -21,7 +21,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-RHO0 = 1.225  # kg/m^3, ISA sea level
+from ..constants import RHO0
 
 
 def momentum_constants(motor: dict[str, Any], powerplant: str, reference_speed: float

@@ -11,9 +11,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..constants import DEG
 from .aerobuildup import AeroModel
 
-DEG = np.pi / 180.0
 ALPHA_RANGE_DEG = (-10.0, 25.0)
 ALPHA_TRAIN_DEG = np.arange(-10.0, 25.5, 1.0)
 ALPHA_HELD_DEG = np.arange(-9.5, 25.0, 1.0)

@@ -28,8 +28,8 @@ from dataclasses import dataclass
 import torch
 
 from ..airframe import Airframe
+from ..constants import G0
 
-GRAVITY = 9.80665
 CIRCLE_BANK_FRACTION = 28.0 / 45.0
 BANK_RATIO = {"circle": 1.0, "figure8": 1.0, "helix": 0.6, "s_turn": 0.7}
 MANEUVERS: tuple[str, ...] = tuple(BANK_RATIO)
@@ -57,7 +57,7 @@ def maneuver_spec(name: str, airframe: Airframe) -> ManeuverSpec:
     bank = BANK_RATIO[name] * CIRCLE_BANK_FRACTION * env.max_bank
     v = env.cruise_speed
     climb = min(1.0, 0.5 * env.climb_rate_limit) if name == "helix" else 0.0
-    return ManeuverSpec(name, bank, v * v / (GRAVITY * math.tan(bank)), 1.0 / math.cos(bank), v, climb)
+    return ManeuverSpec(name, bank, v * v / (G0 * math.tan(bank)), 1.0 / math.cos(bank), v, climb)
 
 
 def _ramp(t: torch.Tensor, start: float, duration: float) -> torch.Tensor:

@@ -13,14 +13,14 @@ import torch
 
 from ._warp import warp_func, wp
 from .params import ModelParams, WarpParams
-from .state import SURFACE_POSITION_START, SURFACE_RATE_START, THROTTLE_START, StateVec
+from .state import SURFACE_POSITION_START, SURFACE_RATE_START, THROTTLE, THROTTLE_START, StateVec
 
 
 def command_targets(command: torch.Tensor, p: ModelParams) -> tuple[torch.Tensor, torch.Tensor]:
     """Physical targets from normalised commands [N, 4] -> (surfaces [N, 3] rad, throttle [N])."""
     u = command.clamp(-1.0, 1.0)
     surfaces = p.surface_min + 0.5 * (u[:, :3] + 1.0) * (p.surface_max - p.surface_min)
-    throttle = 0.5 * (u[:, 3] + 1.0)
+    throttle = 0.5 * (u[:, THROTTLE] + 1.0)
     return surfaces, throttle
 
 

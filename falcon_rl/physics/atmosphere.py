@@ -8,13 +8,8 @@ from __future__ import annotations
 import torch
 
 from ._warp import warp_func, wp
+from .constants import G0, GAMMA, LAPSE, P0, R_AIR, T0
 
-T0 = 288.15  # K
-P0 = 101_325.0  # Pa
-G0 = 9.80665  # m/s^2
-R_AIR = 8.31432 / 0.0289644  # J/(kg K), R*/M0 as in the 1976 standard (287.0531)
-LAPSE = -0.0065  # K/m
-GAMMA = 1.4
 R_EARTH = 6_356_766.0  # m, geopotential Earth radius
 H_TROPOPAUSE = 11_000.0  # m geopotential
 T_TROPOPAUSE = T0 + LAPSE * H_TROPOPAUSE  # 216.65 K

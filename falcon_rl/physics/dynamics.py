@@ -32,7 +32,7 @@ from .rotations import (
     rotation_matrix,
     rotation_matrix_wp,
 )
-from .state import ANGULAR_RATE_START, QUATERNION_START, VELOCITY_START, StateVec
+from .state import ANGULAR_RATE_START, QUATERNION_START, SURFACE_POSITION_START, VELOCITY_START, StateVec
 
 
 @dataclass
@@ -92,7 +92,7 @@ def evaluate(x: torch.Tensor, p: ModelParams, air: AirInputs | None = None) -> E
         if air.gust_rate_body is not None:
             omega_air = omega - air.gust_rate_body
     airspeed, alpha, beta = air_data(v_air)
-    height = -x[:, 2]
+    height = S.height(x)
     wing_height = height - (rot[:, 2, :] * p.wing_quarter_chord).sum(-1)
     density = isa_density(height)
     surfaces = torch.minimum(torch.maximum(x[:, S.SURFACE_POSITION], p.surface_min), p.surface_max)
@@ -212,13 +212,14 @@ def evaluate_wp(x: StateVec, wind_ned: wp.vec3, gust_velocity_body: wp.vec3, gus
     v_air = state_vec3(x, VELOCITY_START) - wp.transpose(rot) * wind_ned - gust_velocity_body
     omega_air = state_vec3(x, ANGULAR_RATE_START) - gust_rate_body
     air = air_data_wp(v_air)
-    height = -x[2]
+    height = -x[S.DOWN_INDEX]
     wing_height = height - wp.dot(wp.vec3(rot[2, 0], rot[2, 1], rot[2, 2]), p.wing_quarter_chord[i])
     density = isa_density_wp(height)
     lo = p.surface_min[i]
     hi = p.surface_max[i]
-    surfaces = wp.vec3(wp.min(wp.max(x[13], lo[0]), hi[0]), wp.min(wp.max(x[14], lo[1]), hi[1]),
-                       wp.min(wp.max(x[15], lo[2]), hi[2]))
+    surfaces = wp.vec3(wp.min(wp.max(x[SURFACE_POSITION_START], lo[0]), hi[0]),
+                       wp.min(wp.max(x[SURFACE_POSITION_START + 1], lo[1]), hi[1]),
+                       wp.min(wp.max(x[SURFACE_POSITION_START + 2], lo[2]), hi[2]))
     aero = aero_forces_wp(air[0], air[1], air[2], omega_air, surfaces, density, wing_height / p.span[i],
                           p, i)
     prop = propulsion_forces_wp(v_air, x, density, p, i)

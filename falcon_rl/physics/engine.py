@@ -1,6 +1,6 @@
 """The backend contract: an engine owns one batch's buffers and advances them.
 
-    engine = engine_class("warp")(setup)       # setup: an EngineSetup (params, dt, integrator, ...)
+    engine = engine_class("warp")(setup)       # backends.py; setup: an EngineSetup (params, dt, ...)
     engine.reset(initial_x, initial_command, mask)      # masked write of [N, S] and [N, 4]
     engine.step(command, substeps)             # command [N, 4] in [-1, 1], held over the sub-steps
     engine.derived()                           # [N, DERIVED_WIDTH], columns of derived.DERIVED_FIELDS
@@ -17,14 +17,14 @@ Buffers (allocated by :class:`Engine`, updated in place, never replaced):
     turbulence          the Dryden filter state, or None when turbulence is off
     generator           this engine's torch generator (noise of the torch Dryden filters)
 
-A backend is one module with an :class:`Engine` subclass and one line in :data:`ENGINES`
+A backend is one module with an :class:`Engine` subclass and one line in ``backends.ENGINES``
 (``"name": "module:Class"``, imported on first use so that Warp is only loaded when asked for).
-Engines never import the :class:`~falcon_rl.physics.simulator.Simulator` facade.
+Engines import this module only: never the registry, nor the
+:class:`~falcon_rl.physics.simulator.Simulator` facade.
 """
 
 from __future__ import annotations
 
-import importlib
 from abc import ABC, abstractmethod
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -37,28 +37,6 @@ from .dynamics import AirInputs
 from .params import ModelParams
 from .state import NUM_CONTROLS, StateLayout
 from .wind import Turbulence, TurbulenceConfig
-
-#: Registered backends: name -> "module:Class" (a bare module name is relative to ``falcon_rl.physics``;
-#: a dotted one is imported as written; an Engine subclass may also be registered directly).
-ENGINES: dict[str, str | type[Engine]] = {
-    "torch": "torch_backend:TorchEngine",
-    "warp": "warp_backend:WarpEngine",
-    "scipy": "scipy_backend:ScipyEngine",
-}
-
-
-def engine_class(backend: str) -> type[Engine]:
-    """The engine class registered as ``backend`` (ValueError naming the registered ones)."""
-    if backend not in ENGINES:
-        raise ValueError(f"backend must be one of {tuple(ENGINES)}, got {backend!r}")
-    entry = ENGINES[backend]
-    if isinstance(entry, str):
-        module, name = entry.split(":")
-        module = module if "." in module else f"{__package__}.{module}"
-        entry = getattr(importlib.import_module(module), name)
-    if not (isinstance(entry, type) and issubclass(entry, Engine)):
-        raise TypeError(f"backend {backend!r} is registered as {entry!r}, not an Engine subclass")
-    return entry
 
 
 @dataclass(frozen=True)

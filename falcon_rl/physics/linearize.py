@@ -3,7 +3,9 @@
     x_dot ~ A (x - x_trim) + B (u - u_trim),   A = df/dx [S, S],  B = df/du [S, 4]
 
 x is the full state vector of ``state.py`` (quaternion included, so A has a zero mode along the
-quaternion norm); u are the normalised commands in [-1, 1]. Evaluated in float64.
+quaternion norm); u are the normalised commands in [-1, 1]. Evaluated in float64. This is the one
+linearisation of the flight model: the reduced LQR models (``baselines.linear_models``) are these
+Jacobians carried into their coordinates by the chain rule.
 """
 
 from __future__ import annotations

@@ -20,9 +20,10 @@ from tensordict import TensorDict
 
 from ..airframe import Airframe, load_airframe
 from . import state as S
+from .backends import ENGINES, engine_class
 from .derived import split_derived
 from .dynamics import AirInputs, project
-from .engine import ENGINES, Engine, EngineSetup, engine_class
+from .engine import Engine, EngineSetup
 from .integrators import INTEGRATORS
 from .params import ModelParams, build_params
 from .rotations import euler_to_quaternion
@@ -237,7 +238,7 @@ class Simulator:
         if "position_ned" in initial:
             x[:, S.POSITION] = val("position_ned")
         if "height" in initial:
-            x[:, 2] = -val("height")
+            x[:, S.DOWN_INDEX] = -val("height")
         if "quaternion" in initial and "euler" in initial:
             raise KeyError("give either 'quaternion' or 'euler', not both")
         if "quaternion" in initial:

@@ -68,7 +68,7 @@ class TorchEngine(Engine):
         v_air = x[:, S.VELOCITY] - ned_to_body(x[:, S.QUATERNION], self.wind_ned)
         airspeed = torch.linalg.vector_norm(v_air, dim=-1)
         filt, gust_v, gust_w = dryden_step(turb.filter, turb.noise, self.gust_velocity_body, turb.w20,
-                                           -x[:, S.POSITION][:, 2], airspeed, self.params.span, self.dt)
+                                           S.height(x), airspeed, self.params.span, self.dt)
         turb.filter.copy_(filt)
         self.gust_velocity_body.copy_(gust_v)
         self.gust_rate_body.copy_(gust_w)

@@ -11,12 +11,16 @@ from dataclasses import dataclass
 
 import torch
 
-from ..airframe import Airframe
+from ..airframe import AERO_COEFFICIENTS, Airframe
 from . import state as S
 from .actuators import normalised_command
 from .dynamics import derivative, evaluate
 from .params import ModelParams, build_params
 from .rotations import euler_to_quaternion
+
+#: Newton unknowns [K, 6]: (alpha, beta, elevator, aileron, rudder, throttle); every motor at one throttle.
+_ALPHA, _BETA, _SURFACES, _THROTTLE = 0, 1, slice(2, 5), 5
+_CL, _CD = AERO_COEFFICIENTS.index("CL"), AERO_COEFFICIENTS.index("CD")
 
 
 class TrimError(RuntimeError):
@@ -50,9 +54,9 @@ class TrimResult:
             "height_m": float(self.height[k]),
             "alpha_deg": float(torch.rad2deg(self.alpha[k])),
             "beta_deg": float(torch.rad2deg(self.beta[k])),
-            "elevator_deg": float(torch.rad2deg(self.surfaces[k, 0])),
-            "aileron_deg": float(torch.rad2deg(self.surfaces[k, 1])),
-            "rudder_deg": float(torch.rad2deg(self.surfaces[k, 2])),
+            "elevator_deg": float(torch.rad2deg(self.surfaces[k, S.ELEVATOR])),
+            "aileron_deg": float(torch.rad2deg(self.surfaces[k, S.AILERON])),
+            "rudder_deg": float(torch.rad2deg(self.surfaces[k, S.RUDDER])),
             "throttle": float(self.throttle[k]),
             "thrust_n": float(self.thrust[k]),
             "drag_n": float(self.drag[k]),
@@ -66,22 +70,25 @@ class TrimResult:
 def level_state(unknowns: torch.Tensor, airspeed: torch.Tensor, height: torch.Tensor,
                 num_motors: int) -> torch.Tensor:
     """State [K, S] for unknowns [K, 6] = (alpha, beta, d_e, d_a, d_r, throttle)."""
-    alpha, beta = unknowns[:, 0], unknowns[:, 1]
+    alpha, beta = unknowns[:, _ALPHA], unknowns[:, _BETA]
     k = unknowns.shape[0]
     zeros = torch.zeros(k, dtype=unknowns.dtype, device=unknowns.device)
-    position = torch.stack([zeros, zeros, -height], dim=-1)
-    quat = euler_to_quaternion(torch.stack([zeros, alpha, zeros], dim=-1))
     vel = airspeed[:, None] * torch.stack(
         [torch.cos(alpha) * torch.cos(beta), torch.sin(beta), torch.sin(alpha) * torch.cos(beta)],
         dim=-1)
-    throttle = unknowns[:, 5:6].expand(k, num_motors)
-    return torch.cat([position, quat, vel, torch.zeros_like(vel), unknowns[:, 2:5],
-                      torch.zeros_like(vel), throttle], dim=-1)
+    return S.StateLayout(num_motors).pack({
+        "position_ned": torch.stack([zeros, zeros, -height], dim=-1),
+        "quaternion": euler_to_quaternion(torch.stack([zeros, alpha, zeros], dim=-1)),
+        "velocity_body": vel,
+        "angular_rate_body": torch.zeros_like(vel),
+        "surface_position": unknowns[:, _SURFACES],
+        "throttle": unknowns[:, _THROTTLE, None].expand(k, num_motors),
+    })
 
 
 def _residual(unknowns: torch.Tensor, airspeed, height, p: ModelParams, num_motors: int):
     x = level_state(unknowns, airspeed, height, num_motors)
-    command = normalised_command(unknowns[:, 2:5], unknowns[:, 5], p)
+    command = normalised_command(unknowns[:, _SURFACES], unknowns[:, _THROTTLE], p)
     xdot = derivative(x, command, p)
     return torch.cat([xdot[:, S.VELOCITY], xdot[:, S.ANGULAR_RATE]], dim=-1)
 
@@ -107,8 +114,8 @@ def trim_level(
     m = airframe.num_motors
     p = build_params(airframe, k, dtype=torch.float64, ground_effect=ground_effect)
     z = torch.zeros(k, 6, dtype=torch.float64)
-    z[:, 0] = 0.05
-    z[:, 5] = 0.5
+    z[:, _ALPHA] = 0.05
+    z[:, _THROTTLE] = 0.5
     step_limit = torch.tensor([0.05, 0.05, 0.05, 0.05, 0.05, 0.2], dtype=torch.float64)
     residual = None
     for _ in range(max_iter):
@@ -134,14 +141,16 @@ def _check(airframe: Airframe, z, v, h, err, tol, p: ModelParams) -> None:
         where = f"{airframe.name} at {float(v[i]):.2f} m/s, {float(h[i]):.2f} m"
         if not torch.isfinite(z[i]).all():
             raise TrimError(f"trim diverged for {where}")
-        if not lo <= float(z[i, 0]) <= hi:
-            raise TrimError(f"no trim for {where}: alpha {float(z[i, 0]):.3f} rad leaves the aero "
+        if not lo <= float(z[i, _ALPHA]) <= hi:
+            raise TrimError(f"no trim for {where}: alpha {float(z[i, _ALPHA]):.3f} rad leaves the aero "
                             f"table's range [{lo}, {hi}] (below stall speed "
                             f"{airframe.envelope.stall_speed} m/s?)")
-        if not 0.0 <= float(z[i, 5]) <= 1.0:
-            raise TrimError(f"no trim for {where}: needs throttle {float(z[i, 5]):.3f}, outside [0, 1]")
-        if not (p.surface_min[i] <= z[i, 2:5]).all() or not (z[i, 2:5] <= p.surface_max[i]).all():
-            raise TrimError(f"no trim for {where}: surfaces {z[i, 2:5].tolist()} rad exceed limits")
+        if not 0.0 <= float(z[i, _THROTTLE]) <= 1.0:
+            throttle = float(z[i, _THROTTLE])
+            raise TrimError(f"no trim for {where}: needs throttle {throttle:.3f}, outside [0, 1]")
+        surfaces = z[i, _SURFACES]
+        if not (p.surface_min[i] <= surfaces).all() or not (surfaces <= p.surface_max[i]).all():
+            raise TrimError(f"no trim for {where}: surfaces {surfaces.tolist()} rad exceed limits")
         if err[i] > max(1e3 * tol, 1e-6):
             raise TrimError(f"trim did not converge for {where} (residual {float(err[i]):.3g})")
 
@@ -151,9 +160,9 @@ def _result(z, v, h, p: ModelParams, m: int, err) -> TrimResult:
     ev = evaluate(x, p)
     qs = 0.5 * ev.density * v**2 * p.wing_area
     return TrimResult(
-        airspeed=v, height=h, alpha=z[:, 0], beta=z[:, 1], surfaces=z[:, 2:5], throttle=z[:, 5],
-        commands=normalised_command(z[:, 2:5], z[:, 5], p), state=x,
-        thrust=ev.thrust.sum(-1), lift=qs * ev.coefficients[:, 0], drag=qs * ev.coefficients[:, 1],
-        lift_coefficient=ev.coefficients[:, 0], drag_coefficient=ev.coefficients[:, 1],
+        airspeed=v, height=h, alpha=z[:, _ALPHA], beta=z[:, _BETA], surfaces=z[:, _SURFACES],
+        throttle=z[:, _THROTTLE], commands=normalised_command(z[:, _SURFACES], z[:, _THROTTLE], p), state=x,
+        thrust=ev.thrust.sum(-1), lift=qs * ev.coefficients[:, _CL], drag=qs * ev.coefficients[:, _CD],
+        lift_coefficient=ev.coefficients[:, _CL], drag_coefficient=ev.coefficients[:, _CD],
         induced_drag_coefficient=ev.induced_drag_coefficient, residual=err,
     )

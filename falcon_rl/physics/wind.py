@@ -48,9 +48,8 @@ from dataclasses import dataclass
 import torch
 
 from ._warp import vector_type, warp_func, warp_struct, wp
+from .constants import FT, KT
 
-FT = 0.3048  # m per ft
-KT = 1852.0 / 3600.0  # m/s per knot
 #: MIL-F-8785C severities by W20, knots.
 SEVERITY_W20_KT: dict[str, float] = {"very_light": 2.0, "light": 15.0, "moderate": 30.0, "severe": 45.0}
 #: Filter states per env: (y_u, y_v1, y_v2, y_w1, y_w2, y_p, z_q, z_r).

@@ -42,11 +42,8 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 from ..airframe import AERO_COEFFICIENTS, AERO_VARIABLES, Airframe, Motor
+from ..constants import FT, LBF, LBM, SLUG_FT2
 from .jsbsim_xml import (
-    FT,
-    LBF,
-    LBM,
-    SLUG_FT2,
     Expr,
     body_to_structural_in,
     clamp,

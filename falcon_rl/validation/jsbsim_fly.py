@@ -34,14 +34,13 @@ import torch
 from tqdm.auto import tqdm
 
 from ..airframe import Airframe
+from ..constants import FT, G0
 from ..physics import state as S
-from ..physics.atmosphere import G0
 from ..physics.dynamics import air_data
 from ..physics.ground_effect import GE_INDUCED, GE_OFF
 from ..physics.rotations import quaternion_to_euler
 from ..physics.simulator import Simulator
 from .jsbsim_export import GE_SWITCH, SURFACE_CMD, SURFACE_NAMES, THROTTLE_CMD
-from .jsbsim_xml import FT
 
 #: WGS84 equatorial radius, m.
 EARTH_RADIUS = 6_378_137.0
@@ -68,10 +67,12 @@ def falcon_channels(states: torch.Tensor) -> dict[str, np.ndarray]:
     airspeed, alpha, beta = air_data(states[:, S.VELOCITY])
     euler = quaternion_to_euler(states[:, S.QUATERNION])
     rates, uvw = states[:, S.ANGULAR_RATE], states[:, S.VELOCITY]
-    out = {"altitude": -states[:, 2], "pitch_rate": rates[:, 1], "airspeed": airspeed, "alpha": alpha,
-           "beta": beta, "theta": euler[:, 1], "phi": euler[:, 0], "psi": euler[:, 2],
-           "roll_rate": rates[:, 0], "yaw_rate": rates[:, 2], "u": uvw[:, 0], "v": uvw[:, 1],
-           "w": uvw[:, 2], "north": states[:, 0], "east": states[:, 1]}
+    position = states[:, S.POSITION]
+    out = {"altitude": S.height(states), "pitch_rate": rates[:, S.PITCH], "airspeed": airspeed,
+           "alpha": alpha, "beta": beta, "theta": euler[:, S.PITCH], "phi": euler[:, S.ROLL],
+           "psi": euler[:, S.YAW], "roll_rate": rates[:, S.ROLL], "yaw_rate": rates[:, S.YAW],
+           "u": uvw[:, S.X], "v": uvw[:, S.Y], "w": uvw[:, S.Z], "north": position[:, S.NORTH],
+           "east": position[:, S.EAST]}
     return {k: v.detach().cpu().numpy().astype(np.float64) for k, v in out.items()}
 
 
@@ -141,7 +142,7 @@ def initialise_jsbsim(fdm, airframe: Airframe, initial: torch.Tensor, command: n
     fdm["ic/terrain-elevation-ft"] = 0.0
     fdm["ic/lat-geod-rad"] = 0.0
     fdm["ic/long-gc-rad"] = 0.0
-    fdm["ic/h-agl-ft"] = -float(x[2]) / FT
+    fdm["ic/h-agl-ft"] = float(S.height(x)) / FT
     for name, value in (("phi", phi), ("theta", theta), ("psi-true", psi)):
         fdm[f"ic/{name}-rad"] = value
     for name, value in zip(("u", "v", "w"), x[S.VELOCITY].tolist(), strict=True):
@@ -150,8 +151,8 @@ def initialise_jsbsim(fdm, airframe: Airframe, initial: torch.Tensor, command: n
         fdm[f"ic/{name}-rad_sec"] = value
     for name, value in zip(SURFACE_NAMES, x[S.SURFACE_POSITION].tolist(), strict=True):
         fdm[f"fcs/falcon/{name}-trim"] = value
-    for m in range(airframe.num_motors):
-        fdm[f"fcs/falcon/throttle-{m}-trim"] = float(x[S.THROTTLE_START + m])
+    for m, value in enumerate(S.StateLayout(airframe.num_motors).field(x, "throttle").tolist()):
+        fdm[f"fcs/falcon/throttle-{m}-trim"] = value
     fdm[GE_SWITCH] = 1.0 if ground_effect else 0.0
     set_command(fdm, command)
     if not fdm.run_ic():

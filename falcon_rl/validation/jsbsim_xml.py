@@ -1,4 +1,5 @@
-"""Small builders for JSBSim XML: function trees, triplets and unit conversions.
+"""Small builders for JSBSim XML: function trees, triplets and coordinates (the unit conversions
+are ``falcon_rl.constants``).
 
 A function tree is written as nested tuples: ``("sum", a, b)`` becomes ``<sum>a b</sum>``, a
 ``str`` leaf is a ``<property>`` and a number leaf a ``<value>``.
@@ -8,12 +9,7 @@ from __future__ import annotations
 
 import xml.etree.ElementTree as ET
 
-FT = 0.3048  # m per ft
-IN = 0.0254  # m per inch
-LBM = 0.45359237  # kg per lbm (JSBSim weights in lbs are pounds-mass at standard gravity)
-SLUG = 14.593902937206364  # kg per slug
-SLUG_FT2 = SLUG * FT**2  # kg m^2 per slug ft^2
-LBF = SLUG * FT  # N per lbf (1 slug ft/s^2)
+from ..constants import IN
 
 Expr = str | float | int | tuple
 
