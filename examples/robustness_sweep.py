@@ -22,6 +22,7 @@ from tensordict import TensorDictBase
 from tensordict.nn import TensorDictModuleBase
 
 from falcon_rl import load_airframe, make_env
+from falcon_rl.transforms import flight_env
 from falcon_rl.transforms.presets import GRID, grid_turbulence, nominal_height
 
 FAMILIES = ("sensors", "obs_delay", "action_delay", "turbulence")
@@ -47,13 +48,13 @@ class MeasuredView(TensorDictModuleBase):
 
 def trim_hold_policy(env) -> TensorDictModuleBase:
     """Fallback controller: hold the trim command (used when the LQR baselines are unavailable)."""
-    task = env.base_env.task if hasattr(env, "base_env") else env.task
+    trim = flight_env(env, "trim_action").trim_action()  # [A]
 
     class TrimHold(TensorDictModuleBase):
         in_keys, out_keys = [], ["action"]
 
         def forward(self, td: TensorDictBase) -> TensorDictBase:
-            td.set("action", task.trim.command[task.channels].expand(td.batch_size[0], -1).clone())
+            td.set("action", trim.expand(td.batch_size[0], -1).clone())
             return td
 
     return TrimHold()

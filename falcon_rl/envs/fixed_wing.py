@@ -20,6 +20,7 @@ command; the state is read once per env step.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 import torch
@@ -29,9 +30,10 @@ from torchrl.envs import EnvBase
 
 from ..airframe import Airframe, load_airframe
 from ..physics import Simulator
+from ..physics.params import RANDOMIZABLE_PARAMETERS
 from ..physics.wind import TurbulenceConfig
 from ..transforms.presets import nominal_height, resolve_turbulence
-from .tasks import TASKS, TaskConfig
+from .tasks import TaskConfig, task_spec
 
 #: Fields of ``Simulator.state`` published under ("state", ...).
 STATE_KEYS: tuple[str, ...] = (
@@ -40,12 +42,21 @@ STATE_KEYS: tuple[str, ...] = (
     "ground_contact",
 )
 
+#: Per-env ``ModelParams`` fields that ``set_physical_parameters`` may write: the rows the physics
+#: parameter table flags randomisable (``physics.params.RANDOMIZABLE_PARAMETERS``), written through
+#: ``Simulator.params.assign``, which refreshes the rows derived from them.
+RANDOMISABLE_MODEL_PARAMETERS: tuple[str, ...] = RANDOMIZABLE_PARAMETERS
+#: Per-env atmosphere parameters that ``set_physical_parameters`` may write: steady wind [N, 3] m/s
+#: NED, and Dryden W20 [N] m/s (only with turbulence on).
+RANDOMISABLE_ATMOSPHERE_PARAMETERS: tuple[str, ...] = ("wind_ned", "turbulence_w20")
+RANDOMISABLE_PARAMETERS: tuple[str, ...] = RANDOMISABLE_MODEL_PARAMETERS + RANDOMISABLE_ATMOSPHERE_PARAMETERS
+
 
 @dataclass
 class FixedWingEnvConfig:
     """Everything that builds a :class:`FixedWingEnv` (Isaac-Lab style config next to its env)."""
 
-    #: Task name, one of ``falcon_rl.envs.tasks.TASKS``.
+    #: Task name, a registered task (``falcon_rl.envs.tasks.task_spec``).
     task: str = "altitude"
     #: Shipped airframe name or JSON path.
     airframe: str = "navion"
@@ -72,21 +83,50 @@ class FixedWingEnvConfig:
 
 
 class FixedWingEnv(EnvBase):
-    """Batched fixed-wing flight task as a TorchRL environment (batch-locked, batch [N])."""
+    """Batched fixed-wing flight task as a TorchRL environment (batch-locked, batch [N]).
+
+    Flight-env interface: the transforms, recipes and evaluation helpers use only these members
+    (and TorchRL's ``batch_size``, ``device`` and specs), found through
+    ``falcon_rl.transforms.flight_env``; any base env that provides them works under the transforms.
+    N envs, D observation entries, A action channels.
+
+    =================================  ==========  ==================================================
+    member                             shape       meaning; used by
+    =================================  ==========  ==================================================
+    control_dt (alias env_dt)          float       s per env step (decimation x dt); sensors, delays
+    observe(state)                     [N, D]      the task's observation of a (measured) state,
+                                                   without side effects; SensorTransform
+    trim_action()                      [A]         trim command in the action channels; ActionDelay,
+                                                   recipes' trim_action, TrimHold, examples
+    physical_parameters(names=None)    {[N, ...]}  current per-env values (copies); None: the
+                                                   randomisable ones; DomainRandomization.sampled
+    nominal_physical_parameters(...)   {[N, ...]}  the values the env was built with; randomisation
+    set_physical_parameters(mask, **)  mask [N]    masked write of RANDOMISABLE_PARAMETERS, each
+                                                   [N, ...] or one row [...]; DomainRandomization
+    episode_step                       [N] long    env steps since each env's reset (a copy)
+    max_episode_steps                  int         truncation once episode_step reaches it; recipes
+    set_episode_step(values, mask)     [N] or int  start counters mid-episode; stagger_episodes
+    stagger_episodes(generator)        -           counters uniform in {0, ..., max - 1}; recipes
+    =================================  ==========  ==================================================
+
+    Parameter names: any per-env ``ModelParams`` field may be read (e.g. ``chord``, ``span``); only
+    ``RANDOMISABLE_PARAMETERS`` may be written; ``turbulence_w20`` exists with turbulence on. A
+    ValueError (one line) reports an unknown or non-randomisable name, a shape mismatch or a step
+    count outside [0, max_episode_steps). (``parameters`` is ``nn.Module``'s, hence the prefix.)
+    """
 
     batch_locked = True
 
     def __init__(self, config: FixedWingEnvConfig | None = None, airframe: Airframe | None = None):
         config = config or FixedWingEnvConfig()
-        if config.task not in TASKS:
-            raise ValueError(f"unknown task {config.task!r}; choose one of {sorted(TASKS)}")
+        spec = task_spec(config.task)
         if config.decimation < 1:
             raise ValueError(f"decimation must be >= 1, got {config.decimation}")
         device = torch.device(config.device)
         super().__init__(batch_size=torch.Size([config.num_envs]), device=device)
         self.config = config
         self.airframe = airframe or load_airframe(config.airframe)
-        task_cls, config_cls = TASKS[config.task]
+        task_cls, config_cls = spec.task, spec.config
         task_config = config.task_config if config.task_config is not None else config_cls()
         trim_airspeed = task_config.trim_airspeed or self.airframe.envelope.cruise_speed
         turbulence = resolve_turbulence(config.turbulence, trim_airspeed, nominal_height(task_config))
@@ -100,6 +140,7 @@ class FixedWingEnv(EnvBase):
         self.task = task_cls(task_config, self.sim, self.generator, self.env_dt, config.ground_effect)
         self.max_episode_steps = max(1, round(self.task.episode_seconds / self.env_dt))
         self.step_count = torch.zeros(config.num_envs, dtype=torch.long, device=device)
+        self._nominal_parameters = self.physical_parameters()
         self._set_seed(config.seed)
         self._make_specs()
 
@@ -153,15 +194,14 @@ class FixedWingEnv(EnvBase):
         return self._output(self.task.observe(state), state, no, no, reward=None)
 
     def observe(self, state: TensorDictBase) -> torch.Tensor:
-        """[N, D] observation the task makes of ``state`` (e.g. a measured one) with its current
-        buffers, without side effects (the sensor transform's hook)."""
+        """[N, D] observation the task makes of ``state`` ([N] fields as under ("state", ...), e.g. a
+        measured one) with its current buffers, without side effects (the sensor transform's hook)."""
         return self.task.observe(state)
 
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
         action = tensordict.get("action")
         command = self.task.command(action)
-        for _ in range(self.config.decimation):
-            self.sim.step(command)
+        self.sim.step(command, substeps=self.config.decimation)
         state = self.sim.state
         observation, reward, terminated = self.task.step(state, action)
         self.step_count += 1
@@ -183,3 +223,101 @@ class FixedWingEnv(EnvBase):
         if reward is not None:
             out["reward"] = reward
         return TensorDict(out, batch_size=self.batch_size, device=self.device)
+
+    # ------------------------------------------------------------------ flight-env interface
+    @property
+    def control_dt(self) -> float:
+        """Seconds per env step (decimation x physics dt); ``env_dt`` is the same value."""
+        return self.env_dt
+
+    def trim_action(self) -> torch.Tensor:
+        """[A] the task's straight-and-level trim command in its action channels (a copy)."""
+        return self.task.trim.command[self.task.channels].clone()
+
+    def physical_parameters(self, names: Iterable[str] | None = None) -> dict[str, torch.Tensor]:
+        """Current per-env parameters {name: [N, ...]} (copies). None: the randomisable ones this env
+        has (``turbulence_w20`` only with turbulence on); any per-env ModelParams field may be named."""
+        names = self._randomisable_names() if names is None else tuple(names)
+        return {name: self._parameter_tensor(name).clone() for name in names}
+
+    def nominal_physical_parameters(self, names: Iterable[str] | None = None) -> dict[str, torch.Tensor]:
+        """As :meth:`physical_parameters`, the values the env was built with (a parameter that is not
+        randomisable cannot change, so its current value is its nominal one)."""
+        names = self._randomisable_names() if names is None else tuple(names)
+        return {name: (self._nominal_parameters[name] if name in self._nominal_parameters
+                       else self._parameter_tensor(name)).clone() for name in names}
+
+    def set_physical_parameters(self, mask: torch.Tensor | None = None, **values: torch.Tensor) -> None:
+        """Write randomisable parameters on the rows where ``mask`` [N] bool is True (all when None).
+        Each value is [N, ...] or one row [...] for every env; all are checked before any is written."""
+        rows = self._rows(mask)
+        checked = {}
+        for name, value in values.items():
+            if name not in RANDOMISABLE_PARAMETERS:
+                kind = "is not randomisable" if name in self.sim.params.per_env_fields() else "is unknown"
+                raise ValueError(f"physical parameter {name!r} {kind}; randomisable: "
+                                 f"{', '.join(RANDOMISABLE_PARAMETERS)}")
+            target = self._parameter_tensor(name)
+            value = torch.as_tensor(value, device=self.device)
+            if value.shape not in (target.shape, target.shape[1:]):
+                raise ValueError(f"{name} must have shape {list(target.shape)} or {list(target.shape[1:])}, "
+                                 f"got {list(value.shape)}")
+            checked[name] = value.to(target.dtype).expand_as(target)
+        model = {name: value for name, value in checked.items() if name in RANDOMISABLE_MODEL_PARAMETERS}
+        if model:
+            self.sim.params.assign(rows, **model)
+        for name in RANDOMISABLE_ATMOSPHERE_PARAMETERS:
+            if name in checked:
+                self._parameter_tensor(name)[rows] = checked[name][rows]
+
+    @property
+    def episode_step(self) -> torch.Tensor:
+        """[N] long env steps since each env's last reset (a copy); truncation at max_episode_steps."""
+        return self.step_count.clone()
+
+    def set_episode_step(self, values: torch.Tensor | int, mask: torch.Tensor | None = None) -> None:
+        """Set the step counters of the rows in ``mask`` [N] (all when None) to ``values`` ([N] or one
+        int), each in [0, max_episode_steps)."""
+        n = self.config.num_envs
+        rows = self._rows(mask)
+        values = torch.as_tensor(values, dtype=torch.long, device=self.device)
+        if values.shape not in ((n,), ()):
+            raise ValueError(f"episode steps must have shape [{n}] or [], got {list(values.shape)}")
+        if bool(((values < 0) | (values >= self.max_episode_steps)).any()):
+            raise ValueError(f"episode steps must lie in [0, {self.max_episode_steps}), got "
+                             f"[{int(values.min())}, {int(values.max())}]")
+        self.step_count[rows] = values.expand(n)[rows]
+
+    def stagger_episodes(self, generator: torch.Generator) -> None:
+        """Start each env's step counter at a step drawn uniformly in [0, max_episode_steps) with
+        ``generator``, so that truncations spread over the horizon instead of all envs in lockstep."""
+        offsets = torch.randint(0, self.max_episode_steps, self.step_count.shape, generator=generator,
+                                device=generator.device)
+        self.set_episode_step(offsets.to(self.device))
+
+    def _randomisable_names(self) -> tuple[str, ...]:
+        return tuple(name for name in RANDOMISABLE_PARAMETERS
+                     if name != "turbulence_w20" or self.sim.turbulence is not None)
+
+    def _parameter_tensor(self, name: str) -> torch.Tensor:
+        """The live per-env tensor [N, ...] behind parameter ``name`` (ValueError when unknown)."""
+        if name == "wind_ned":
+            return self.sim.wind_ned
+        if name == "turbulence_w20":
+            if self.sim.turbulence is None:
+                raise ValueError("turbulence_w20 needs turbulence on in the env "
+                                 "(make_env(..., turbulence=...))")
+            return self.sim.turbulence.w20
+        if name not in self.sim.params.per_env_fields():
+            raise ValueError(f"physical parameter {name!r} is unknown; randomisable: "
+                             f"{', '.join(RANDOMISABLE_PARAMETERS)}")
+        return getattr(self.sim.params, name)
+
+    def _rows(self, mask: torch.Tensor | None) -> torch.Tensor:
+        """[N] bool rows of ``mask`` ([N] or [N, 1]; all rows when None)."""
+        n = self.config.num_envs
+        if mask is None:
+            return torch.ones(n, dtype=torch.bool, device=self.device)
+        if mask.numel() != n:
+            raise ValueError(f"mask must have {n} entries, got shape {list(mask.shape)}")
+        return mask.reshape(n).to(self.device, torch.bool)

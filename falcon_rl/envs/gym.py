@@ -5,8 +5,9 @@
     env = gym.make("falcon_rl/Altitude-v0", airframe="volantex_ranger")
     obs, info = env.reset(seed=0)
 
-Registered ids: falcon_rl/Altitude-v0, falcon_rl/Attitude-v0, falcon_rl/ClimbDescend-v0,
-falcon_rl/PathFollowing-v0, falcon_rl/Trajectory-v0. Keyword arguments are those of
+Registered ids: each task's ``TaskSpec.gym_id`` (falcon_rl/Altitude-v0, falcon_rl/Attitude-v0,
+falcon_rl/ClimbDescend-v0, falcon_rl/PathFollowing-v0, falcon_rl/Trajectory-v0, and any task registered
+later once ``register_gym_envs()`` runs again). Keyword arguments are those of
 :func:`falcon_rl.envs.make_env` (airframe, backend, device and task or env options).
 ``info`` carries the task's references and errors (("task", ...) keys) as floats or arrays.
 """
@@ -21,13 +22,10 @@ import torch
 from gymnasium import spaces
 from tensordict import TensorDict
 
-GYM_IDS: dict[str, str] = {
-    "altitude": "falcon_rl/Altitude-v0",
-    "attitude": "falcon_rl/Attitude-v0",
-    "climb_descend": "falcon_rl/ClimbDescend-v0",
-    "path_following": "falcon_rl/PathFollowing-v0",
-    "trajectory": "falcon_rl/Trajectory-v0",
-}
+from .tasks.registry import TASK_SPECS, SpecView
+
+#: Task name -> Gymnasium id (a live, read-only view of the task registry).
+GYM_IDS: SpecView[str] = SpecView(lambda spec: spec.gym_id)
 
 
 class CoreAircraftEnv(gymnasium.Env):
@@ -37,15 +35,17 @@ class CoreAircraftEnv(gymnasium.Env):
 
     def __init__(self, task: str = "altitude", airframe: str = "navion", backend: str = "torch",
                  device: str = "cpu", seed: int = 0, **options: Any):
-        from . import make_env
+        from .factory import make_env
 
         self.env = make_env(task, airframe, num_envs=1, backend=backend, device=device, seed=seed, **options)
-        clip = float(self.env.task.observation_clip)
-        self.observation_space = spaces.Box(-clip, clip, shape=(self.env.task.observation_dim,),
+        observation_spec, action_spec = self.env.observation_spec["observation"], self.env.action_spec
+        self.observation_space = spaces.Box(observation_spec.low[0].cpu().numpy().astype(np.float32),
+                                            observation_spec.high[0].cpu().numpy().astype(np.float32),
                                             dtype=np.float32)
-        self.action_space = spaces.Box(-1.0, 1.0, shape=(self.env.task.action_dim,), dtype=np.float32)
-        zeros = torch.zeros(1, self.env.task.action_dim, dtype=self.env.sim.dtype, device=self.env.device)
-        self._action = TensorDict({"action": zeros}, batch_size=[1], device=self.env.device)
+        self.action_space = spaces.Box(action_spec.low[0].cpu().numpy().astype(np.float32),
+                                       action_spec.high[0].cpu().numpy().astype(np.float32), dtype=np.float32)
+        self._action_dtype = action_spec.dtype
+        self._action = TensorDict({"action": action_spec.zero()}, batch_size=[1], device=self.env.device)
 
     @staticmethod
     def _info(data: TensorDict) -> dict[str, Any]:
@@ -66,16 +66,20 @@ class CoreAircraftEnv(gymnasium.Env):
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         action_t = torch.as_tensor(np.asarray(action, dtype=np.float32), device=self.env.device)
-        self._action["action"] = action_t.reshape(1, -1).to(self.env.sim.dtype).clamp(-1.0, 1.0)
+        self._action["action"] = action_t.reshape(1, -1).to(self._action_dtype).clamp(-1.0, 1.0)
         data = self.env.step(self._action.clone())["next"]
         obs = data["observation"][0].detach().cpu().numpy().astype(np.float32)
         return (obs, float(data["reward"][0, 0]), bool(data["terminated"][0, 0]),
                 bool(data["truncated"][0, 0]), self._info(data))
 
 
-def register_gym_envs() -> None:
-    """Register ``falcon_rl/<Task>-v0`` for every task (idempotent)."""
-    for task, env_id in GYM_IDS.items():
-        if env_id not in gymnasium.registry:
-            gymnasium.register(id=env_id, entry_point="falcon_rl.envs.gym:CoreAircraftEnv",
+def register_gym_envs() -> list[str]:
+    """Register every registered task's gym id with Gymnasium (idempotent: ids already known are
+    skipped); returns the ids registered by this call."""
+    added = []
+    for task, spec in TASK_SPECS.items():
+        if spec.gym_id not in gymnasium.registry:
+            gymnasium.register(id=spec.gym_id, entry_point="falcon_rl.envs.gym:CoreAircraftEnv",
                                kwargs={"task": task})
+            added.append(spec.gym_id)
+    return added

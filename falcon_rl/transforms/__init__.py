@@ -10,9 +10,11 @@ or compose them yourself on a :class:`~falcon_rl.envs.FixedWingEnv`:
 
 The true state stays under ("state", ...) (metrics, rewards); what the policy perceives is
 "observation" and ("measured", ...). Every transform keeps per-env buffers and resets only the rows
-of a partial reset. Presets of the paper's robustness grid are in :mod:`.presets`.
+of a partial reset. Presets of the paper's robustness grid are in :mod:`.presets`. The transforms reach
+the base env only through the flight-env interface documented on FixedWingEnv (:func:`flight_env`).
 """
 
+from ._env import FLIGHT_ENV_INTERFACE, FlightEnv, flight_env
 from .delay import ActionDelay, ObservationDelay
 from .presets import (
     GRID,
@@ -25,6 +27,7 @@ from .presets import (
 from .randomize import DomainRandomization, RandomizationConfig
 from .sensors import SENSOR_FIELDS, SensorChannel, SensorConfig, SensorTransform
 
-__all__ = ["GRID", "SENSOR_FIELDS", "ActionDelay", "DomainRandomization", "ObservationDelay",
-           "RandomizationConfig", "SensorChannel", "SensorConfig", "SensorTransform", "delay_preset",
-           "grid_turbulence", "resolve_turbulence", "robustness_transforms", "sensor_preset"]
+__all__ = ["FLIGHT_ENV_INTERFACE", "GRID", "SENSOR_FIELDS", "ActionDelay", "DomainRandomization", "FlightEnv",
+           "ObservationDelay", "RandomizationConfig", "SensorChannel", "SensorConfig", "SensorTransform",
+           "delay_preset", "flight_env", "grid_turbulence", "resolve_turbulence", "robustness_transforms",
+           "sensor_preset"]

@@ -1,6 +1,6 @@
 """Observation and action (command) latency as TorchRL transforms, in milliseconds.
 
-A delay is a whole number of env steps, ``round(ms / env_dt)``, fixed or drawn per env and per
+A delay is a whole number of env steps, ``round(ms / control_dt)``, fixed or drawn per env and per
 episode from a (low, high) range at each reset. Each env keeps its own ring buffer, refilled on its
 reset (partial resets touch only the reset rows).
 
@@ -21,13 +21,7 @@ from torchrl.data import Composite
 from torchrl.envs import Transform
 
 from ._buffers import DelayLine, delay_range, draw_delays, reset_mask
-
-
-def _base_env(transform: Transform):
-    parent = transform.parent
-    if parent is None:
-        raise RuntimeError(f"{type(transform).__name__} must be appended to a TransformedEnv")
-    return parent.base_env
+from ._env import flight_env
 
 
 class _DelayTransform(Transform):
@@ -41,7 +35,7 @@ class _DelayTransform(Transform):
         self._delays: torch.Tensor | None = None
 
     def _steps_range(self) -> tuple[int, int]:
-        return delay_range(self.delay_ms, _base_env(self).env_dt)
+        return delay_range(self.delay_ms, flight_env(self, "control_dt").control_dt)
 
     def _draw(self, mask: torch.Tensor, num_envs: int, device: torch.device) -> torch.Tensor:
         """Per-env delays [N] long, redrawn on the rows in ``mask``."""
@@ -114,8 +108,8 @@ class ActionDelay(_DelayTransform):
         return tensordict  # a reset pushes nothing into the command path
 
     def _trim_action(self, n: int) -> torch.Tensor:
-        task = _base_env(self).task
-        return task.trim.command[task.channels].expand(n, -1)
+        """[N, A] the base env's trim action, the command applied until the first delayed one."""
+        return flight_env(self, "trim_action").trim_action().expand(n, -1)
 
     def _reset(self, tensordict: TensorDictBase, tensordict_reset: TensorDictBase) -> TensorDictBase:
         n = tensordict_reset.batch_size[0]

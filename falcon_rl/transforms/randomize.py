@@ -1,8 +1,9 @@
 """Domain randomisation as a TorchRL transform: per-env model parameters redrawn at each reset.
 
 Before the base env resets, the rows being reset get fresh draws (the other rows keep theirs),
-written with ``ModelParams.assign`` (one masked write per field; the Warp backend sees them without
-rebinding). Draws are uniform, relative to the nominal airframe unless stated:
+written with the base env's ``set_physical_parameters`` (one masked write; on FixedWingEnv it wraps
+``ModelParams.assign``, which the Warp backend sees without rebinding). Draws are uniform, relative to
+the env's ``nominal_physical_parameters`` unless stated:
 
     mass, inertia                  x U(lo, hi)   (inertia: the whole tensor by one factor)
     CG shift along body x          U(lo, hi) m   moves the wing and motors by -dx and transfers the
@@ -27,8 +28,8 @@ import torch
 from tensordict import TensorDictBase
 from torchrl.envs import Transform
 
-from ..physics.params import ModelParams
 from ._buffers import reset_mask
+from ._env import flight_env
 
 Range = tuple[float, float] | None
 
@@ -47,9 +48,12 @@ class RandomizationConfig:
     turbulence_w20: Range = None
 
 
+#: Model parameters drawn at each reset (all written, nominal where the range is None).
 _FIELDS = ("mass", "inertia", "aero_coefficients", "aero_rates", "wing_quarter_chord", "motor_position",
            "thrust_coefficient", "actuator_time_constant", "actuator_natural_frequency",
            "throttle_time_constant")
+#: Reference lengths of the CG-shift moment transfer (read, never written).
+_REFERENCE_FIELDS = ("chord", "span")
 
 
 class DomainRandomization(Transform):
@@ -67,10 +71,11 @@ class DomainRandomization(Transform):
         u = torch.rand(n, generator=self.generator, dtype=like.dtype).to(like.device)
         return bounds[0] + (bounds[1] - bounds[0]) * u
 
-    def _sample_params(self, p: ModelParams, n: int) -> dict[str, torch.Tensor]:
+    def _sample_params(self, n: int) -> dict[str, torch.Tensor]:
+        """Fresh draws {field: [N, ...]} of every field in ``_FIELDS`` for all N envs."""
         cfg, nom = self.config, self._nominal
         assert nom is not None
-        like = p.mass
+        like = nom["mass"]
         out = {"mass": nom["mass"] * self._uniform(cfg.mass_scale, n, like),
                "inertia": nom["inertia"] * self._uniform(cfg.inertia_scale, n, like)[:, None, None]}
         aero_scale = torch.stack([self._uniform(cfg.aero_scale, n, like) for _ in range(6)], -1)  # [N, 6]
@@ -78,8 +83,8 @@ class DomainRandomization(Transform):
         rates = nom["aero_rates"] * aero_scale[:, :, None]
         dx = self._uniform(cfg.cg_shift, n, like, default=0.0)
         shift = torch.stack([dx, torch.zeros_like(dx), torch.zeros_like(dx)], -1)
-        cm = -(dx / p.chord)[:, None]
-        cn = -(dx / p.span)[:, None]
+        cm = -(dx / nom["chord"])[:, None]
+        cn = -(dx / nom["span"])[:, None]
         coeffs = coeffs.clone()
         coeffs[..., 4] = coeffs[..., 4] + cm * coeffs[..., 0]
         coeffs[..., 5] = coeffs[..., 5] + cn * coeffs[..., 2]
@@ -98,31 +103,26 @@ class DomainRandomization(Transform):
         return out
 
     def _reset_env_preprocess(self, tensordict: TensorDictBase | None) -> TensorDictBase | None:
-        sim = self.parent.base_env.sim
-        n = sim.num_envs
-        mask = reset_mask(tensordict, n, sim.device)
-        p = sim.params
+        env = flight_env(self, "nominal_physical_parameters", "set_physical_parameters")
+        n = env.batch_size[0]
+        mask = reset_mask(tensordict, n, env.device)
         if self._nominal is None:
-            self._nominal = {name: getattr(p, name).clone() for name in _FIELDS}
-        p.assign(mask, **self._sample_params(p, n))
-        cfg = self.config
+            self._nominal = env.nominal_physical_parameters(_FIELDS + _REFERENCE_FIELDS)
+        values = self._sample_params(n)
+        cfg, like = self.config, self._nominal["mass"]
         if cfg.wind_speed is not None:
-            speed = self._uniform(cfg.wind_speed, n, p.mass)
-            heading = self._uniform((0.0, 2.0 * math.pi), n, p.mass)
-            wind = torch.stack([speed * torch.cos(heading), speed * torch.sin(heading), 0.0 * speed], -1)
-            sim.wind_ned[mask] = wind[mask]
+            speed = self._uniform(cfg.wind_speed, n, like)
+            heading = self._uniform((0.0, 2.0 * math.pi), n, like)
+            values["wind_ned"] = torch.stack([speed * torch.cos(heading), speed * torch.sin(heading),
+                                              0.0 * speed], -1)
         if cfg.turbulence_w20 is not None:
-            if sim.turbulence is None:
-                raise ValueError("turbulence_w20 randomisation needs turbulence on in the env "
-                                 "(make_env(..., turbulence=...))")
-            sim.turbulence.w20[mask] = self._uniform(cfg.turbulence_w20, n, p.mass)[mask]
+            values["turbulence_w20"] = self._uniform(cfg.turbulence_w20, n, like)
+        env.set_physical_parameters(mask, **values)
         return tensordict
 
     def sampled(self) -> dict[str, torch.Tensor]:
-        """Current per-env values of the randomised fields (views of the simulator's tensors)."""
-        sim = self.parent.base_env.sim
-        out = {name: getattr(sim.params, name) for name in _FIELDS}
-        out["wind_ned"] = sim.wind_ned
-        if sim.turbulence is not None:
-            out["turbulence_w20"] = sim.turbulence.w20
-        return out
+        """Current per-env values {name: [N, ...]} of what this transform draws (copies): the model
+        fields, wind_ned and, with turbulence on, turbulence_w20."""
+        env = flight_env(self, "physical_parameters")
+        atmosphere = [name for name in ("wind_ned", "turbulence_w20") if name in env.physical_parameters()]
+        return env.physical_parameters((*_FIELDS, *atmosphere))

@@ -29,8 +29,10 @@ from tensordict import TensorDict, TensorDictBase
 from torchrl.data import Composite
 from torchrl.envs import Transform
 
+from ..physics import state as S
 from ..physics.rotations import ned_to_body, normalize_quaternion, quaternion_to_euler
 from ._buffers import DelayLine, delay_steps, reset_mask
+from ._env import flight_env
 
 
 @dataclass
@@ -175,7 +177,7 @@ class SensorTransform(Transform):
         fields_ = {k: state.get(k) for k in state.keys()}  # noqa: SIM118 (iterating a td walks the batch)
         fields_.update(measured)
         if "position_ned" in measured and "height" in fields_:
-            fields_["height"] = -measured["position_ned"][:, 2]
+            fields_["height"] = -measured["position_ned"][:, S.DOWN]
         q = fields_["quaternion"]
         if "quaternion" in measured and "euler" in fields_:
             fields_["euler"] = quaternion_to_euler(q)
@@ -185,11 +187,12 @@ class SensorTransform(Transform):
 
     @property
     def env_dt(self) -> float:
-        return self.parent.base_env.env_dt
+        """Seconds per env step of the base env (its ``control_dt``)."""
+        return flight_env(self, "control_dt").control_dt
 
     def _observe(self, td: TensorDictBase, measured: TensorDictBase) -> TensorDictBase:
         td.set("measured", measured)
-        td.set("observation", self.parent.base_env.observe(measured))
+        td.set("observation", flight_env(self, "observe").observe(measured))
         return td
 
     # ------------------------------------------------------------------ TorchRL hooks
