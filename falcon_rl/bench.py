@@ -145,7 +145,7 @@ def env_stepper(env: Any) -> Callable[[], None]:
 def time_env(cfg: BenchConfig, backend: str, num_envs: int) -> BenchCase | None:
     """Time the TorchRL "altitude" env's ``step_and_maybe_reset`` (None if envs are unavailable)."""
     try:
-        from . import make_env  # type: ignore[attr-defined]
+        from .envs import make_env
     except (ImportError, AttributeError):
         return None
     case = BenchCase("env", backend, cfg.device, num_envs, cfg.steps, cfg.trials)

@@ -2,37 +2,25 @@
 exposes ``NAME``, ``HELP``, ``add_arguments(parser)`` and ``run(args) -> int``.
 
 Conventions: ``--json`` prints exactly one JSON document on stdout (messages go to stderr);
-exit 0 on success, 2 on bad input with a one-line reason on stderr.
+exit 0 on success, 2 on bad input with a one-line reason on stderr. What the subcommands share
+(:class:`UsageError`, :func:`emit`) lives in :mod:`falcon_rl.commands._common`, below this module.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
-import json
 import pkgutil
 import sys
-from typing import Any
 
 from . import commands as _commands_pkg
-
-
-class UsageError(ValueError):
-    """Bad user input: printed as one line on stderr, exit code 2."""
+from .commands._common import UsageError, emit
 
 
 class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> None:  # type: ignore[override]
         print(f"falcon-rl: error: {message}", file=sys.stderr)
         raise SystemExit(2)
-
-
-def emit(args: argparse.Namespace, document: Any, text: str) -> None:
-    """Print ``document`` as JSON with --json, else the human-readable ``text``."""
-    if getattr(args, "json", False):
-        print(json.dumps(document, indent=2, default=float))
-    else:
-        print(text)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -63,6 +51,9 @@ def main(argv: list[str] | None = None) -> int:
         message = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         print(f"falcon-rl {args.command}: error: {message}", file=sys.stderr)
         return 2
+
+
+__all__ = ["UsageError", "build_parser", "emit", "main"]
 
 
 if __name__ == "__main__":

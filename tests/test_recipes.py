@@ -10,11 +10,11 @@ import torch
 
 import falcon_rl
 from falcon_rl.cli import main
-from falcon_rl.policies import available, shipped_policy
-from falcon_rl.recipes import algorithm, load_policy
-from falcon_rl.recipes.checkpoint import atomic_save, load_checkpoint, load_replay, replay_state
+from falcon_rl.policies import available, load_policy, read_policy, shipped_policy
+from falcon_rl.policies.format import atomic_save
+from falcon_rl.recipes import algorithm
+from falcon_rl.recipes.checkpoint import load_checkpoint, load_replay, replay_state
 from falcon_rl.recipes.common import RunningNorm
-from falcon_rl.recipes.export import read_policy
 
 TINY = {"ppo": {"num_envs": 8, "rollout_steps": 8, "epochs": 1, "minibatches": 2},
         "sac": {"num_envs": 8, "rollout_steps": 4, "updates_per_batch": 2, "batch_size": 16,

@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from ..cli import UsageError, emit
+from ._common import UsageError, emit
 
 NAME = "airframe"
 HELP = "airframe tools: 'derive' an airframe JSON from a geometry source with AeroSandbox"

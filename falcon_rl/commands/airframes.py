@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from ..airframe import list_airframes, load_airframe
-from ..cli import emit
+from ._common import emit
 
 NAME = "airframes"
 HELP = "list the shipped airframes (span, area, aspect ratio, taper, mass, speeds)"

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ..cli import UsageError, emit
+from ._common import UsageError, emit
 
 NAME = "bench"
 HELP = "time Simulator.step (and the TorchRL env) per backend and env count, optionally vs JSBSim"

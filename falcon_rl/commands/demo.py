@@ -18,10 +18,10 @@ import torch
 from tqdm import tqdm
 
 from ..airframe import list_airframes, load_airframe
-from ..cli import UsageError, emit
 from ..evaluation.ground_effect_table import format_table, ground_effect_table, rows_as_dicts
 from ..physics.trim import trim_level
 from ..viz.ground_effect import plot_ground_effect
+from ._common import UsageError, emit
 
 NAME = "demo"
 HELP = "run the main job: shipped PPO vs LQR vs MPPI on the altitude protocol, trims, ground effect"

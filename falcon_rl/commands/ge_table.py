@@ -6,9 +6,9 @@ import argparse
 from pathlib import Path
 
 from ..airframe import load_airframe
-from ..cli import UsageError, emit
 from ..evaluation.ground_effect_table import format_table, ground_effect_table, rows_as_dicts
 from ..viz.ground_effect import plot_ground_effect
+from ._common import UsageError, emit
 
 NAME = "ge-table"
 HELP = "ground-effect thrust table (trim on/off and lifting-line theory at h/b 0.25..6) + PNG"

@@ -14,7 +14,7 @@ import ast
 import importlib.util
 import math
 
-from ..cli import UsageError, emit
+from ._common import UsageError, emit
 
 NAME = "train"
 HELP = "train PPO, SAC or TD3 on a task (checkpoints, policy export, final evaluation)"

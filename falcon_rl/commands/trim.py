@@ -5,8 +5,8 @@ from __future__ import annotations
 import argparse
 
 from ..airframe import load_airframe
-from ..cli import UsageError, emit
 from ..physics.trim import trim_level
+from ._common import UsageError, emit
 
 NAME = "trim"
 HELP = "trim straight and level flight: alpha, elevator, throttle, thrust, drag, C_L, C_D, C_Di"

@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from ..airframe import load_airframe
-from ..cli import UsageError, emit
+from ._common import UsageError, emit
 
 NAME = "validate"
 HELP = "cross-simulator validation: fly an airframe and its JSBSim export, print r and RMSE per channel"

@@ -2,53 +2,12 @@
 
 from __future__ import annotations
 
-from dataclasses import fields, replace
-
-from torchrl.envs import Compose, EnvBase, TransformedEnv
-
-from ..transforms.presets import robustness_transforms
+from .factory import make_env
 from .fixed_wing import STATE_KEYS, FixedWingEnv, FixedWingEnvConfig
 from .gym import GYM_IDS, CoreAircraftEnv, register_gym_envs
-from .tasks import TASKS, Task, TaskConfig
-
-
-def make_env(task: str, airframe: str = "navion", num_envs: int = 1, backend: str = "torch",
-             device: str = "cpu", seed: int = 0, *, sensors: object = None, obs_delay_ms: object = None,
-             action_delay_ms: object = None, randomize: object = None, **options) -> EnvBase:
-    """Build a :class:`FixedWingEnv` for ``task`` (one of ``TASKS``) on ``airframe``.
-
-    ``options`` name fields of :class:`FixedWingEnvConfig` (dt, decimation, integrator,
-    ground_effect, wind, turbulence) or of the task's config dataclass (episode_seconds,
-    target_altitudes, maneuver, reward weights, ...); an unknown name raises ``TypeError``.
-
-    Robustness (all off by default; see :mod:`falcon_rl.transforms`): ``sensors`` (a grid name
-    "nominal" | "mild" | "medium" | "severe" or a SensorConfig), ``obs_delay_ms`` and
-    ``action_delay_ms`` (a grid name, milliseconds, or a (low, high) range drawn per episode),
-    ``randomize`` (True or a RandomizationConfig), ``turbulence`` (MIL or grid name, sigma_u/V_a,
-    or a TurbulenceConfig) and ``wind`` (NED, m/s). With any transform on, the result is a
-    ``TransformedEnv`` over the FixedWingEnv (``env.base_env``).
-    """
-    if task not in TASKS:
-        raise ValueError(f"unknown task {task!r}; choose one of {sorted(TASKS)}")
-    env_fields = {f.name for f in fields(FixedWingEnvConfig)}
-    _, task_config_cls = TASKS[task]
-    task_fields = {f.name for f in fields(task_config_cls)}
-    unknown = set(options) - env_fields - task_fields
-    if unknown:
-        raise TypeError(f"unknown options {sorted(unknown)} for task {task!r}; env options: "
-                        f"{sorted(env_fields)}, task options: {sorted(task_fields)}")
-    task_config = options.pop("task_config", None) or task_config_cls()
-    task_options = {k: v for k, v in options.items() if k in task_fields and k not in env_fields}
-    task_config = replace(task_config, **task_options)
-    env_options = {k: v for k, v in options.items() if k in env_fields}
-    config = FixedWingEnvConfig(task=task, airframe=airframe, num_envs=num_envs, backend=backend,
-                                device=str(device), seed=seed, task_config=task_config, **env_options)
-    env = FixedWingEnv(config)
-    transforms = robustness_transforms(sensors, obs_delay_ms, action_delay_ms, randomize, seed=seed)
-    return TransformedEnv(env, Compose(*transforms)) if transforms else env
-
+from .tasks import TASKS, Task, TaskConfig, TaskSpec, register_task, task_spec
 
 register_gym_envs()
 
 __all__ = ["GYM_IDS", "STATE_KEYS", "TASKS", "CoreAircraftEnv", "FixedWingEnv", "FixedWingEnvConfig", "Task",
-           "TaskConfig", "make_env", "register_gym_envs"]
+           "TaskConfig", "TaskSpec", "make_env", "register_gym_envs", "register_task", "task_spec"]

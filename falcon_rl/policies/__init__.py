@@ -1,12 +1,24 @@
-"""Shipped policies (package data): ``<algorithm>_<task>_<airframe>.pt`` policy files, see README.md.
+"""Deployable policies: the policy file format (:mod:`.format`) and the shipped policies (package data:
+``<algorithm>_<task>_<airframe>.pt`` policy files, see README.md).
 
     path = shipped_policy("altitude", "volantex_ranger")          # PPO by default
-    policy = falcon_rl.recipes.load_policy(path, env)
+    policy = falcon_rl.policies.load_policy(path, env)
 """
 
 from __future__ import annotations
 
 from pathlib import Path
+
+from .format import (
+    FORMAT,
+    DeployedPolicy,
+    PolicyNetwork,
+    export_torchscript,
+    load_policy,
+    policy_document,
+    read_policy,
+    save_policy,
+)
 
 HERE = Path(__file__).resolve().parent
 
@@ -25,4 +37,5 @@ def shipped_policy(task: str, airframe: str, algorithm: str = "ppo") -> Path:
     return path
 
 
-__all__ = ["available", "shipped_policy"]
+__all__ = ["FORMAT", "DeployedPolicy", "PolicyNetwork", "available", "export_torchscript", "load_policy",
+           "policy_document", "read_policy", "save_policy", "shipped_policy"]

@@ -11,7 +11,7 @@ from __future__ import annotations
 import importlib
 from types import ModuleType
 
-from .export import load_policy, read_policy, save_policy
+from ..policies import load_policy, read_policy, save_policy
 
 NAMES = ("ppo", "sac", "td3")
 

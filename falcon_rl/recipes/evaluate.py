@@ -1,8 +1,6 @@
-"""Evaluation hook: score the current actor on the harness's protocol for its task.
-
-altitude -> ``altitude_protocol`` (survival, acquisition, RMSE, settling time, overshoot over
-``episodes`` 30 s episodes); attitude -> ``attitude_protocol`` (bank / climb-rate / airspeed RMSE per
-maneuver); other tasks are not scored (empty result).
+"""Evaluation hook: score the current actor on the protocol its task's ``TaskSpec`` names (e.g.
+altitude: survival, acquisition, RMSE, settling time, overshoot; attitude: bank / climb-rate /
+airspeed RMSE per maneuver); a task without a protocol is not scored (None).
 """
 
 from __future__ import annotations
@@ -11,10 +9,10 @@ import math
 
 from tensordict.nn import TensorDictModule
 
-from ..envs.maneuvers import MANEUVERS
-from ..evaluation.protocols import ProtocolResult, altitude_protocol, attitude_protocol
+from ..envs import task_spec
+from ..evaluation.protocols import ProtocolResult
+from ..policies.format import DeployedPolicy, policy_document, policy_from_document
 from .common import PolicyNet, TrainConfig
-from .export import DeployedPolicy, policy_document
 
 #: Seed offset of the evaluation episodes (never the training seed).
 EVAL_SEED = 10_000
@@ -22,28 +20,23 @@ EVAL_SEED = 10_000
 
 def deployed(net: PolicyNet) -> DeployedPolicy:
     """A frozen copy of ``net`` as deployed (deterministic tanh(loc), normaliser baked in)."""
-    doc = policy_document(net, {})
-    policy = DeployedPolicy(doc["arch"], doc["norm"])
-    policy.mlp.load_state_dict(doc["mlp"])
-    return policy.eval()
+    return policy_from_document(policy_document(net, {}))
 
 
-def evaluate(net: PolicyNet, cfg: TrainConfig, label: str, episodes: int,
-             maneuvers: tuple[str, ...] = MANEUVERS) -> ProtocolResult | None:
-    """Run the task's protocol on a frozen copy of ``net`` (None for tasks without one)."""
+def evaluate(net: PolicyNet, cfg: TrainConfig, label: str, episodes: int, **options) -> ProtocolResult | None:
+    """Run the task's protocol on a frozen copy of ``net`` with ``episodes`` (per case, e.g. per
+    maneuver), ``cfg.eval_seconds`` and ``options`` (protocol options); None for a task without one."""
+    spec = task_spec(cfg.task)
+    if spec.protocol is None:
+        return None
     policy = deployed(net)
 
     def factory(env):
         return TensorDictModule(policy.to(env.device), in_keys=["observation"], out_keys=["action"])
 
-    common = {"seed": cfg.seed + EVAL_SEED, "backend": cfg.backend, "device": cfg.device}
-    if cfg.task == "altitude":
-        return altitude_protocol(cfg.airframe, label, factory, episodes=episodes,
-                                 episode_seconds=cfg.eval_seconds, **common)
-    if cfg.task == "attitude":
-        return attitude_protocol(cfg.airframe, label, factory, maneuvers=maneuvers,
-                                 episodes=max(1, episodes // len(maneuvers)), **common)
-    return None
+    protocol = spec.protocol_function()
+    return protocol(cfg.airframe, label, factory, episodes=episodes, seed=cfg.seed + EVAL_SEED,
+                    backend=cfg.backend, device=cfg.device, episode_seconds=cfg.eval_seconds, **options)
 
 
 def eval_scalars(result: ProtocolResult | None) -> dict[str, float]:

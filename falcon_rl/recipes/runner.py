@@ -18,10 +18,10 @@ from pathlib import Path
 
 import torch
 
+from ..policies import export_torchscript, save_policy
 from .checkpoint import load_checkpoint, load_replay, restore, save_checkpoint
 from .common import Counters, EpisodeStats, PolicyNet, TrainConfig, set_threads
 from .evaluate import eval_scalars, evaluate
-from .export import export_torchscript, save_policy
 from .logging import Progress, log_scalars, make_logger
 
 
