@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 
+from falcon_rl.envs import TASKS
 from falcon_rl.recipes import ppo, sac, td3
 
 RECIPES = {"ppo": ppo, "sac": sac, "td3": td3}
@@ -21,16 +22,18 @@ RECIPES = {"ppo": ppo, "sac": sac, "td3": td3}
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--algorithm", choices=sorted(RECIPES), default="ppo")
-    parser.add_argument("--task", choices=["altitude", "attitude"], default="altitude")
+    parser.add_argument("--task", choices=sorted(TASKS), default="altitude")
     parser.add_argument("--airframe", default="volantex_ranger")
     parser.add_argument("--frames", type=int, default=None, help="default: the recipe's")
     parser.add_argument("--envs", type=int, default=None, help="default: the recipe's")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--eval-episodes", type=int, default=20,
+                        help="episodes of the final evaluation (per maneuver on the attitude protocol)")
     args = parser.parse_args()
     recipe = RECIPES[args.algorithm]
     cfg = recipe.make_config(args.task, airframe=args.airframe, frames=args.frames, num_envs=args.envs,
                              seed=args.seed, out=f"runs/examples/{args.algorithm}_{args.task}",
-                             final_eval_episodes=20 if args.task == "altitude" else 4)
+                             final_eval_episodes=args.eval_episodes)
     summary = recipe.train(cfg)
     print(f"{summary['frames']:,} frames in {summary['wall_seconds']:.0f} s "
           f"({summary['env_steps_per_s']:,.0f} env-steps/s incl. learning)")

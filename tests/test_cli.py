@@ -84,3 +84,39 @@ def test_bad_input_exits_2_with_one_line(capsys, argv, needle):
     assert needle in err
     assert len(err.strip().splitlines()) == 1
     assert out == ""
+
+
+def test_eval_climb_descend_trim_json(capsys, tmp_path):
+    code, doc, _ = run_json(capsys, "eval", "--task", "climb_descend", "--controller", "trim",
+                            "--episodes", "2", "--seconds", "1", "--backend", "warp", "--out", str(tmp_path))
+    assert code == 0
+    assert doc["task"] == "climb_descend" and doc["controller"] == "trim" and doc["survival"] == 1.0
+    for key in ("climb_rate_rmse_mps", "ramp_rmse_m", "level_off", "level_off_time_s", "overshoot_m"):
+        assert key in doc
+    assert doc["settings"]["episodes"] == 2 and doc["settings"]["episode_seconds"] == 1.0
+    assert "## Climb and descend" in (tmp_path / "report.md").read_text()
+    assert (tmp_path / "climb_descend_volantex_ranger_trim.png").stat().st_size > 10_000
+
+
+@pytest.mark.parametrize(
+    ("argv", "needle"),
+    [
+        (["--task", "path_following", "--controller", "lqr"],
+         "controller 'lqr' does not apply to task 'path_following'; its controllers: ['trim']"),
+        (["--task", "trajectory", "--controller", "mppi"], "its controllers: ['trim']"),
+        (["--task", "altitude", "--controller", "trim", "--maneuvers", "circle"],
+         "--maneuvers does not apply to the altitude protocol"),
+        (["--task", "attitude", "--controller", "trim", "--maneuvers", "loop"], "unknown maneuvers ['loop']"),
+        (["--task", "hover", "--controller", "trim"], "invalid choice: 'hover'"),
+        (["--task", "altitude", "--controller", "no_such_policy.pt"], "nor a policy file"),
+    ],
+)
+def test_eval_bad_input_exits_2_with_one_line(capsys, tmp_path, argv, needle):
+    try:
+        code = main(["eval", *argv, "--episodes", "1", "--seconds", "0.1", "--out", str(tmp_path)])
+    except SystemExit as exc:  # argparse errors
+        code = exc.code
+    _, err = capsys.readouterr()
+    assert code == 2
+    assert needle in err
+    assert len(err.strip().splitlines()) == 1

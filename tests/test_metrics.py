@@ -21,6 +21,11 @@ from falcon_rl.evaluation import (
     survival,
     time_in_band,
 )
+from falcon_rl.evaluation.tracking_metrics import (
+    climb_descend_metrics,
+    path_following_metrics,
+    trajectory_metrics,
+)
 
 
 def test_first_episode_mask() -> None:
@@ -124,3 +129,76 @@ def test_altitude_metrics_on_a_synthetic_rollout() -> None:
     assert m["overshoot"].item() == pytest.approx(0.6, abs=1e-5)
     assert m["rmse"].item() == pytest.approx(math.sqrt((0.01 + 0 + 0 + 0) / 4), abs=1e-5)
     assert m["time_in_band"].item() == 1.0
+
+
+# ------------------------------------------------------------------ climb/descend, path, trajectory
+def _synthetic(n: int, t: int, dt: float, state: dict, task: dict,
+               terminated: torch.Tensor | None = None) -> TensorDict:
+    """A rollout [n, t] of "next" entries with times dt, 2 dt, ... and no done unless ``terminated``."""
+    time = (dt * torch.arange(1, t + 1, dtype=torch.float32)).expand(n, t)
+    terminated = torch.zeros(n, t, dtype=torch.bool) if terminated is None else terminated
+    return TensorDict({"next": {"state": {**state, "time": time}, "task": task,
+                                "done": terminated[..., None].clone(), "terminated": terminated[..., None]}},
+                      batch_size=[n, t])
+
+
+def test_climb_descend_metrics_score_the_ramp_and_the_level_off() -> None:
+    # dt 1 s, 40 -> 50 m at 2 m/s: the ramp runs 5 steps (h_ref 42..50), then holds
+    rate = torch.tensor([[2.0] * 5 + [0.0] * 3, [2.0] * 8])  # row 1: the ramp never ends
+    height = torch.tensor([[42.0, 44.0, 46.0, 48.0, 49.5, 51.2, 50.2, 50.0],
+                           [42.0, 44.0, 46.0, 48.0, 50.0, 52.0, 54.0, 56.0]])
+    reference = torch.tensor([[42.0, 44.0, 46.0, 48.0, 50.0, 50.0, 50.0, 50.0],
+                              [42.0, 44.0, 46.0, 48.0, 50.0, 52.0, 54.0, 56.0]])
+    climb = torch.tensor([[2.0, 2.0, 2.0, 2.0, 1.5, 1.3, -0.6, -0.2], [2.0] * 8])
+    velocity = torch.stack([torch.zeros(2, 8), torch.zeros(2, 8), -climb], dim=-1)
+    full = torch.ones(2, 8)
+    rollout = _synthetic(2, 8, 1.0, {"height": height, "velocity_ned": velocity},
+                         {"target_altitude": torch.stack([50.0 * full[0], 70.0 * full[1]]),
+                          "initial_altitude": 40.0 * full, "reference_altitude": reference,
+                          "reference_climb_rate": rate})
+    m = climb_descend_metrics(rollout, band=1.0, grace_seconds=1.0)
+    assert m["survival"].tolist() == [True, True]
+    assert m["climb_rate_rmse_mps"][0].item() == pytest.approx(math.sqrt(0.25 / 5))  # -0.5 at the ramp's end
+    assert m["climb_rate_rmse_mps"][1].item() == pytest.approx(0.0)
+    assert m["ramp_rmse_m"][0].item() == pytest.approx(math.sqrt(0.25 / 5))
+    assert m["level_off"].tolist() == [True, False]
+    assert m["level_off_time_s"][0].item() == pytest.approx(1.0)  # ramp ends at step 5, inside for good at 6
+    assert math.isnan(m["level_off_time_s"][1].item()) and math.isnan(m["level_off_rmse_m"][1].item())
+    assert m["level_off_rmse_m"][0].item() == pytest.approx(math.sqrt((0.04 + 0.0) / 2), abs=1e-5)
+    assert m["overshoot_m"][0].item() == pytest.approx(1.2, abs=1e-5)
+
+
+def test_path_following_metrics_known_cross_track_and_course() -> None:
+    # row 0: path north through the origin, aircraft weaving +-3 m east of it after t = 3 s, heading 45 deg
+    # row 1: path south (course pi), aircraft 6 m east = 6 m left of it (e_y = -6), heading -170 deg
+    t = 6
+    north = 10.0 * torch.arange(1, t + 1, dtype=torch.float32)
+    east = torch.tensor([[8.0, 4.0, 3.0, -3.0, 3.0, -3.0], [6.0] * t])
+    position = torch.stack([north.expand(2, t), east, torch.full((2, t), -61.0)], dim=-1)
+    heading = torch.tensor([math.radians(45.0), math.radians(-170.0)])[:, None].expand(2, t)
+    velocity = torch.stack([10 * torch.cos(heading), 10 * torch.sin(heading), torch.zeros(2, t)], dim=-1)
+    course = torch.tensor([0.0, math.pi])[:, None].expand(2, t)
+    rollout = _synthetic(2, t, 1.0, {"position_ned": position, "velocity_ned": velocity,
+                                     "height": -position[..., 2]},
+                         {"path_point": torch.zeros(2, t, 2), "path_course": course,
+                          "path_height": torch.full((2, t), 60.0)})
+    m = path_following_metrics(rollout, band=5.0, intercept_seconds=3.0)
+    assert m["cross_track_rmse_m"].tolist() == pytest.approx([3.0, 6.0], abs=1e-5)
+    assert m["course_rmse_rad"].tolist() == pytest.approx([math.radians(45.0), math.radians(10.0)], abs=1e-5)
+    assert m["altitude_rmse_m"].tolist() == pytest.approx([1.0, 1.0], abs=1e-5)
+    assert m["completion"].tolist() == [True, False]
+    assert m["capture_time_s"][0].item() == pytest.approx(2.0) and math.isnan(m["capture_time_s"][1].item())
+
+
+def test_trajectory_metrics_split_the_position_error() -> None:
+    # reference at the origin; after the 1 s intercept the errors are (3, 4, 0), (0, 0, -2), (3, 4, 0) m
+    position = torch.tensor([[[0.0, 0.0, 12.0], [3.0, 4.0, 0.0], [0.0, 0.0, -2.0], [3.0, 4.0, 0.0]]])
+    terminated = torch.tensor([[False, False, False, True]])
+    rollout = _synthetic(1, 4, 0.5, {"position_ned": position}, {"reference_position": torch.zeros(1, 4, 3)},
+                         terminated)
+    m = trajectory_metrics(rollout, tolerance=4.5, intercept_seconds=1.0)
+    assert m["position_rmse_m"].item() == pytest.approx(math.sqrt((25 + 4 + 25) / 3), abs=1e-5)
+    assert m["horizontal_rmse_m"].item() == pytest.approx(math.sqrt(50 / 3), abs=1e-5)
+    assert m["vertical_rmse_m"].item() == pytest.approx(math.sqrt(4 / 3), abs=1e-5)
+    assert m["time_in_band"].item() == pytest.approx(1 / 3)
+    assert not m["survival"].item()  # terminated on the last step

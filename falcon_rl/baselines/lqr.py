@@ -16,6 +16,7 @@ coordinated-turn body rates of the commanded bank. The policies read only ("stat
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
@@ -23,11 +24,26 @@ from tensordict import TensorDictBase
 from tensordict.nn import TensorDictModuleBase
 
 from ..airframe import Airframe
+from ..constants import G0
+from ..physics import state as S
 from ..physics.trim import TrimError, trim_level
-from .linear_models import FULL_STATES, LONGITUDINAL_STATES, climb_rate_row, linear_model_at
+from .linear_models import (
+    FULL_INDEX,
+    FULL_STATES,
+    LONGITUDINAL_INDEX,
+    LONGITUDINAL_STATES,
+    climb_rate_row,
+    linear_model_at,
+    reduced_state,
+)
 from .lqr_design import design_lqri
 
-G0 = 9.80665
+if TYPE_CHECKING:
+    from ..envs import FixedWingEnv
+
+#: Body velocity (u, v, w) and body rates (p, q, r) in the full reduced state.
+_UVW = [FULL_INDEX[name] for name in ("u", "v", "w")]
+_PQR = [FULL_INDEX[name] for name in ("p", "q", "r")]
 
 #: Bryson maxima (SI, rad) shared by all airframes.
 ALTITUDE_STATE_MAX = {"u": 1.0, "w": 2.0, "q": 0.3, "theta": 0.15, "h": 1.0}
@@ -97,15 +113,15 @@ def _grid(airframe: Airframe, heights: list[float], speeds: list[float], full: b
         n = model.A.shape[0]
         if full:
             outputs = np.zeros((3, n))
-            outputs[0, FULL_STATES.index("phi")] = 1.0
+            outputs[0, FULL_INDEX["phi"]] = 1.0
             outputs[1] = climb_rate_row(model)
-            uvw = model.x_trim[:3]
-            outputs[2, :3] = uvw / np.linalg.norm(uvw)
+            uvw = model.x_trim[_UVW]
+            outputs[2, _UVW] = uvw / np.linalg.norm(uvw)
             gain = design_lqri(model, dt, outputs, ATTITUDE_STATE_MAX, ATTITUDE_INPUT_MAX,
                                ATTITUDE_INTEGRAL_MAX)
         else:
             outputs = np.zeros((1, n))
-            outputs[0, LONGITUDINAL_STATES.index("h")] = 1.0
+            outputs[0, LONGITUDINAL_INDEX["h"]] = 1.0
             gain = design_lqri(model, dt, outputs, ALTITUDE_STATE_MAX, ALTITUDE_INPUT_MAX,
                                ALTITUDE_INTEGRAL_MAX)
         radius = max(radius, gain.spectral_radius)
@@ -149,11 +165,6 @@ def attitude_schedule(airframe: Airframe, dt: float, height: float = 100.0) -> G
     """Full-state LQRI (bank, climb rate, airspeed) at ``height`` x airspeeds 0.8..1.2 cruise."""
     speeds = _trimmable_speeds(airframe, (0.8, 0.9, 1.0, 1.1, 1.2), height)
     return _grid(airframe, [height], speeds, True, False, dt)
-
-
-def _rate(td: TensorDictBase, n: int, ref: torch.Tensor) -> torch.Tensor:
-    key = ("state", "surface_rate")
-    return td.get(key) if key in td.keys(include_nested=True) else ref.new_zeros(n, 3)
 
 
 class _LQRPolicy(TensorDictModuleBase):
@@ -207,19 +218,21 @@ class AltitudeLQR(_LQRPolicy):
         super().__init__(schedule, dt, limit, [*keys, ("task", "reference_altitude"),
                                                ("task", "reference_climb_rate")])
 
+    @classmethod
+    def from_env(cls, env: FixedWingEnv) -> AltitudeLQR:
+        """The LQRI of ``env``'s airframe, control step, ground-effect mode, device and dtype (any task
+        that publishes ("task", "reference_altitude") and ("task", "reference_climb_rate"))."""
+        return cls(env.sim.airframe, env.env_dt, env.config.ground_effect, env.device, env.sim.dtype)
+
     def forward(self, td: TensorDictBase) -> TensorDictBase:
-        vel, omega = td["state", "velocity_body"], td["state", "angular_rate_body"]
         height, airspeed = td["state", "height"], td["state", "airspeed"]
-        n = height.shape[0]
-        x = torch.stack([vel[:, 0], vel[:, 2], omega[:, 1], td["state", "euler"][:, 1], height,
-                         td["state", "surface_position"][:, 0], _rate(td, n, height)[:, 0],
-                         td["state", "throttle"][:, 0]], dim=-1)
+        x = reduced_state(td["state"], LONGITUDINAL_STATES)
         K, x_trim, u_trim, _ = self.schedule.at(height, airspeed)
         h_ref = td["task", "reference_altitude"]
         x_ref = x_trim.clone()
-        x_ref[:, 4] = h_ref
+        x_ref[:, LONGITUDINAL_INDEX["h"]] = h_ref
         gamma = td["task", "reference_climb_rate"] / airspeed.clamp_min(1.0)
-        x_ref[:, 3] = x_ref[:, 3] + self._smooth(gamma, td["state", "time"])
+        x_ref[:, LONGITUDINAL_INDEX["theta"]] += self._smooth(gamma, td["state", "time"])
         z = self._integrate((height - h_ref).unsqueeze(-1), td["state", "time"])
         td.set(self.out_keys[0], self._control(x, x_ref, z, K, u_trim))
         return td
@@ -237,26 +250,32 @@ class AttitudeLQR(_LQRPolicy):
         super().__init__(schedule, dt, limit, [*keys, ("task", "bank_command"),
                                                ("task", "climb_rate_command"), ("task", "airspeed_command")])
 
+    @classmethod
+    def from_env(cls, env: FixedWingEnv) -> AttitudeLQR:
+        """The LQRI of ``env``'s airframe, control step, device and dtype (any task that publishes the
+        ("task", ...) bank, climb-rate and airspeed commands)."""
+        return cls(env.sim.airframe, env.env_dt, env.device, env.sim.dtype)
+
     def forward(self, td: TensorDictBase) -> TensorDictBase:
-        vel, omega = td["state", "velocity_body"], td["state", "angular_rate_body"]
         euler, height, airspeed = td["state", "euler"], td["state", "height"], td["state", "airspeed"]
-        n = height.shape[0]
-        x = torch.cat([vel, omega, euler[:, :2], td["state", "surface_position"],
-                       _rate(td, n, height), td["state", "throttle"][:, :1]], dim=-1)
+        x = reduced_state(td["state"], FULL_STATES)
         K, x_trim, u_trim, _ = self.schedule.at(height, airspeed)
         bank, climb, speed = (td["task", k] for k in ("bank_command", "climb_rate_command",
                                                       "airspeed_command"))
         x_ref = x_trim.clone()
-        x_ref[:, :3] = x_trim[:, :3] * (speed / x_trim[:, :3].norm(dim=-1)).unsqueeze(-1)
-        theta = x_trim[:, 7] + self._smooth(climb / speed.clamp_min(1.0), td["state", "time"])
+        uvw = x_trim[:, _UVW]
+        x_ref[:, _UVW] = uvw * (speed / uvw.norm(dim=-1)).unsqueeze(-1)
+        gamma = self._smooth(climb / speed.clamp_min(1.0), td["state", "time"])
+        theta = x_trim[:, FULL_INDEX["theta"]] + gamma
         yaw_rate = G0 * torch.tan(bank) / speed.clamp_min(1.0)
-        x_ref[:, 3] = -yaw_rate * torch.sin(theta)
-        x_ref[:, 4] = yaw_rate * torch.sin(bank) * torch.cos(theta)
-        x_ref[:, 5] = yaw_rate * torch.cos(bank) * torch.cos(theta)
-        x_ref[:, 6] = bank
-        x_ref[:, 7] = theta
-        climb_rate = -td["state", "velocity_ned"][:, 2]
-        error = torch.stack([euler[:, 0] - bank, climb_rate - climb, airspeed - speed], dim=-1)
+        # Coordinated turn: body rates (p, q, r) of the yaw rate at bank phi and pitch theta.
+        x_ref[:, _PQR] = yaw_rate.unsqueeze(-1) * torch.stack(
+            [-torch.sin(theta), torch.sin(bank) * torch.cos(theta), torch.cos(bank) * torch.cos(theta)],
+            dim=-1)
+        x_ref[:, FULL_INDEX["phi"]] = bank
+        x_ref[:, FULL_INDEX["theta"]] = theta
+        climb_rate = -td["state", "velocity_ned"][:, S.DOWN]
+        error = torch.stack([euler[:, S.ROLL] - bank, climb_rate - climb, airspeed - speed], dim=-1)
         z = self._integrate(error, td["state", "time"])
         td.set(self.out_keys[0], self._control(x, x_ref, z, K, u_trim))
         return td

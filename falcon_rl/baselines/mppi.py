@@ -38,6 +38,7 @@ from tensordict import TensorDictBase
 from tensordict.nn import TensorDictModuleBase
 
 from ..envs import FixedWingEnv
+from ..envs.tasks import task_spec
 from ..physics import Simulator
 from ..physics import state as S
 
@@ -76,15 +77,29 @@ class MPPIConfig:
     seed: int = 0
 
 
-class MPPI(TensorDictModuleBase):
-    """MPPI policy for the altitude or attitude task of ``env`` (reads ("state"/"task", ...))."""
+#: The references MPPI can track and the ("task", ...) keys each reads: the altitude ramp (altitude and
+#: climb_descend tasks) or the bank / climb-rate / airspeed command stream (attitude task).
+TRACKED_KEYS: dict[str, tuple[str, ...]] = {
+    "altitude": ("target_altitude", "reference_altitude", "reference_climb_rate"),
+    "attitude": ("bank_command", "climb_rate_command", "airspeed_command"),
+}
 
-    def __init__(self, env: FixedWingEnv, config: MPPIConfig | None = None):
+
+class MPPI(TensorDictModuleBase):
+    """MPPI policy tracking the ``tracks`` reference of ``env``'s task (one of ``TRACKED_KEYS``; None:
+    the one whose keys the task publishes). Reads ("state"/"task", ...), writes "action"."""
+
+    def __init__(self, env: FixedWingEnv, config: MPPIConfig | None = None, tracks: str | None = None):
         super().__init__()
         self.config = cfg = config or MPPIConfig()
-        self.task_name = env.config.task
-        if self.task_name not in ("altitude", "attitude"):
-            raise ValueError(f"MPPI serves the altitude and attitude tasks, not {self.task_name!r}")
+        published = set(env.task.info_shapes())
+        if tracks is None:
+            tracks = next((name for name, keys in TRACKED_KEYS.items() if published >= set(keys)), None)
+        if tracks not in TRACKED_KEYS or not published >= set(TRACKED_KEYS[tracks]):
+            raise ValueError(f"MPPI tracks one of {sorted(TRACKED_KEYS)} (their ('task', ...) keys: "
+                             f"{TRACKED_KEYS}); task {env.config.task!r} publishes {sorted(published)}")
+        #: The tracked reference: "altitude" or "attitude".
+        self.tracks = tracks
         task = env.task
         self.channels = list(task.action_channels)
         self.n, self.k = env.sim.num_envs, cfg.samples
@@ -132,10 +147,9 @@ class MPPI(TensorDictModuleBase):
 
     # ---------------------------------------------------------------- planning
     def _initial_state(self, td: TensorDictBase) -> torch.Tensor:
-        st = td["state"]
-        rates = st.get("surface_rate", torch.zeros_like(st["surface_position"]))
-        return torch.cat([st["position_ned"], st["quaternion"], st["velocity_body"], st["angular_rate_body"],
-                          st["surface_position"], rates, st["throttle"]], dim=-1)
+        """Simulator states [N, S] packed from the env's ("state", ...) fields (surface_rate zero
+        when the env does not publish it)."""
+        return S.StateLayout(self.planner.airframe.num_motors).pack(td["state"])
 
     def _step_cost(self, x: torch.Tensor, ref: dict[str, torch.Tensor]) -> torch.Tensor:
         """Cost [N*K] of planner states x [N*K, S] against one planning step's references (each [N*K])."""
@@ -145,12 +159,12 @@ class MPPI(TensorDictModuleBase):
         climb = -(2 * (qx * qz - w * qy) * u + 2 * (qy * qz + w * qx) * v
                   + (1 - 2 * (qx * qx + qy * qy)) * wb)
         airspeed = x[:, S.VELOCITY].norm(dim=-1)
-        height = -x[:, 2]
+        height = S.height(x)
         alpha = torch.atan2(wb, u)
         cost = ((airspeed - ref["airspeed"]) / cfg.airspeed_scale) ** 2
-        cost = cost + (x[:, S.ANGULAR_RATE][:, 1] / cfg.pitch_rate_scale) ** 2
+        cost = cost + (x[:, S.ANGULAR_RATE][:, S.PITCH] / cfg.pitch_rate_scale) ** 2
         cost = cost + ((climb - ref["climb"]) / cfg.climb_rate_scale) ** 2
-        if self.task_name == "altitude":
+        if self.tracks == "altitude":
             cost = cost + ((height - ref["height"]) / cfg.altitude_scale) ** 2
         else:
             if "height" in ref:
@@ -168,7 +182,7 @@ class MPPI(TensorDictModuleBase):
         closed form, or the attitude command stream read ahead (held when the stream is unknown)."""
         tau = self.config.plan_dt * torch.arange(1, self.horizon + 1, device=self.plan.device,
                                                  dtype=self.plan.dtype)[:, None]  # [H, 1]
-        if self.task_name == "altitude":
+        if self.tracks == "altitude":
             target, rate = td["task", "target_altitude"], td["task", "reference_climb_rate"]
             gap = target - td["task", "reference_altitude"]
             remaining = (gap.abs() - rate.abs() * tau).clamp_min(0.0)  # [H, N]
@@ -199,7 +213,7 @@ class MPPI(TensorDictModuleBase):
         noise[:, 0] = 0.0  # keep the warm-started plan itself among the candidates
         candidates = (shifted[:, None] + noise).clamp(-1.0, 1.0)  # [N, K, H, A]
         self.planner.x.copy_(self._initial_state(td).repeat_interleave(k, dim=0))
-        command = self.trim_command.expand(n * k, 4).clone()
+        command = self.trim_command.expand(n * k, S.NUM_CONTROLS).clone()
         ref = self._references(td)
         cost = torch.zeros(n * k, device=self.plan.device, dtype=self.plan.dtype)
         flat = candidates.reshape(n * k, h, a)
@@ -207,8 +221,7 @@ class MPPI(TensorDictModuleBase):
         trim = self.trim_command[self.channels]
         for j in range(h):
             command[:, self.channels] = flat[:, j]
-            for _ in range(self.substeps):
-                self.planner.step(command)
+            self.planner.step(command, substeps=self.substeps)
             cost += self._step_cost(self.planner.x, {name: r[j] for name, r in ref.items()})
             cost += ((flat[:, j] - previous) ** 2).sum(-1) / cfg.smoothness_scale**2
             cost += ((flat[:, j] - trim) ** 2).sum(-1) / cfg.effort_scale**2
@@ -235,7 +248,7 @@ class MPPI(TensorDictModuleBase):
         if fresh.any():
             self.plan[fresh] = self.trim_command[self.channels].to(self.plan)
             self.counter[fresh] = 0
-            self.start_height[fresh] = -td["state", "position_ned"][fresh][:, 2]
+            self.start_height[fresh] = -td["state", "position_ned"][fresh][:, S.DOWN]
         due = (self.counter % self.replan_every) == 0
         if due.any():
             self.replan(td, due)
@@ -269,10 +282,18 @@ def stable_substeps(airframe, plan_dt: float, margin: float = 2.0) -> int:
     return max(1, math.ceil(plan_dt * fastest / margin))
 
 
+def altitude_mppi(env: FixedWingEnv, config: MPPIConfig | None = None) -> MPPI:
+    """MPPI on the altitude ramp of ``env``'s task (the defaults without ``config``)."""
+    return MPPI(env, config or MPPIConfig(), tracks="altitude")
+
+
+def attitude_mppi(env: FixedWingEnv, config: MPPIConfig | None = None) -> MPPI:
+    """MPPI on the attitude command stream of ``env``'s task. Without ``config``: the defaults with
+    K = 64 samples (the maneuvers last up to 3 min; 64 samples fly them at half the planning time of 128)."""
+    return MPPI(env, config or MPPIConfig(samples=64), tracks="attitude")
+
+
 def make_mppi(env: FixedWingEnv, config: MPPIConfig | None = None) -> MPPI:
-    """MPPI for ``env`` (altitude or attitude task). Without ``config``: the defaults, with K = 64
-    samples on the attitude task (its maneuvers last up to 3 min; 64 samples fly them at half the
-    planning time of 128)."""
-    if config is None:
-        config = MPPIConfig(samples=64) if env.config.task == "attitude" else MPPIConfig()
-    return MPPI(env, config)
+    """The MPPI that ``env``'s task registers (``TaskSpec.controllers["mppi"]``, e.g.
+    :func:`altitude_mppi`); ValueError naming the task's controllers when MPPI does not apply."""
+    return task_spec(env.config.task).controller("mppi")(env, config)

@@ -1,5 +1,6 @@
 """Evaluation: the paper's metrics (survival, acquisition, RMSE, time-in-band, settling time,
-overshoot), computed batched from rollouts on the true state."""
+overshoot) and those of the climb/descend, path-following and trajectory protocols, computed batched
+from rollouts on the true state."""
 
 from .metrics import (
     acquisition,
@@ -7,6 +8,7 @@ from .metrics import (
     attitude_metrics,
     first_episode_mask,
     overshoot,
+    ramp_end_index,
     rmse,
     settled_window,
     settling_index,
@@ -15,8 +17,10 @@ from .metrics import (
     survival,
     time_in_band,
 )
+from .tracking_metrics import climb_descend_metrics, path_following_metrics, trajectory_metrics
 
 __all__ = [
-    "acquisition", "altitude_metrics", "attitude_metrics", "first_episode_mask", "overshoot", "rmse",
-    "settled_window", "settling_index", "settling_time", "summarize", "survival", "time_in_band",
+    "acquisition", "altitude_metrics", "attitude_metrics", "climb_descend_metrics", "first_episode_mask",
+    "overshoot", "path_following_metrics", "ramp_end_index", "rmse", "settled_window", "settling_index",
+    "settling_time", "summarize", "survival", "time_in_band", "trajectory_metrics",
 ]

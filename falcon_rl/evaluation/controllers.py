@@ -1,8 +1,10 @@
 """Controllers by name for the evaluation harness: a factory takes the env, returns a policy.
 
-"lqr" and "mppi" are the classical baselines, "trim" holds the trim commands (a floor every
-controller must beat), "ppo" the shipped PPO policy of the task and airframe; any other string is a
-path to a saved policy.
+The baselines that apply to a task are the ones its ``TaskSpec.controllers`` lists: "lqr" and "mppi"
+(the classical baselines, where they apply) and "trim" (holds the trim commands, a floor every
+controller must beat; every task has it). "ppo" is the shipped PPO policy of the task and airframe;
+any other string is the path of a saved policy of the task (or of a task it derives from, e.g. an
+altitude policy on climb_descend, which keeps the altitude MDP).
 """
 
 from __future__ import annotations
@@ -13,53 +15,56 @@ from tensordict import TensorDictBase
 from tensordict.nn import TensorDictModuleBase
 
 from ..envs import FixedWingEnv
+from ..envs.tasks import TASK_SPECS, TaskSpec, task_spec
+from ..policies import load_policy, shipped_policy
 
 CONTROLLERS = ("lqr", "mppi", "trim", "ppo")
 
 
 class TrimHold(TensorDictModuleBase):
-    """Action = the task's trim command in its action channels (open loop)."""
+    """Action = the env's ``trim_action()`` [A], the task's trim command in its action channels (open
+    loop)."""
 
     def __init__(self, env: FixedWingEnv):
         super().__init__()
         self.in_keys = ["observation"]
         self.out_keys = ["action"]
-        task = env.task
-        self.action = task.trim.command[list(task.action_channels)].clone()
+        self.action = env.trim_action()
 
     def forward(self, td: TensorDictBase) -> TensorDictBase:
         td.set("action", self.action.expand(*td.batch_size, -1).clone())
         return td
 
 
+def baseline_names() -> set[str]:
+    """Names of the baselines of every registered task (and the shipped ones: lqr, mppi, trim)."""
+    return {"lqr", "mppi", "trim"}.union(*(spec.controllers for spec in TASK_SPECS.values()))
+
+
 def make_controller(name: str, env: FixedWingEnv) -> TensorDictModuleBase:
-    """Build controller ``name`` (or load a saved policy from a path) for ``env``'s task."""
-    task = env.config.task
-    if name == "trim":
-        return TrimHold(env)
-    if name == "lqr":
-        from ..baselines.lqr import AltitudeLQR, AttitudeLQR
-
-        if task == "altitude":
-            return AltitudeLQR(env.sim.airframe, env.env_dt, env.config.ground_effect, env.device,
-                               env.sim.dtype)
-        if task == "attitude":
-            return AttitudeLQR(env.sim.airframe, env.env_dt, env.device, env.sim.dtype)
-        raise ValueError(f"the LQR baseline serves the altitude and attitude tasks, not {task!r}")
-    if name == "mppi":
-        from ..baselines.mppi import make_mppi
-
-        return make_mppi(env)
+    """Build controller ``name`` for ``env``'s task: one of its spec's baselines, "ppo" or a policy file.
+    A baseline that does not apply, or a policy of another task, is a one-line ValueError."""
+    spec = task_spec(env.config.task)
+    if name in spec.controllers or name in baseline_names():
+        return spec.controller(name)(env)  # ValueError naming the task's controllers if not among them
     path = Path(name)
     if name == "ppo":  # the shipped policy (package data) of this task and airframe
-        from ..policies import shipped_policy
-        path = shipped_policy(task, env.config.airframe)
+        path = shipped_policy(spec.name, env.config.airframe)
     if not path.is_file():
-        raise ValueError(f"controller must be one of {list(CONTROLLERS)} or a policy file; {name!r} is "
-                         "neither")
-    from ..recipes.export import load_policy
+        raise ValueError(f"controller {name!r} is neither one of task {spec.name!r}'s controllers "
+                         f"{sorted(spec.controllers)} nor a policy file")
+    policy = load_policy(path, env)
+    _check_policy_task(path, getattr(policy, "meta", {}).get("task"), spec)
+    return policy
 
-    return load_policy(path, env)
+
+def _check_policy_task(path: Path, trained_on: str | None, spec: TaskSpec) -> None:
+    """A policy flies its own task or one derived from it (a subclass keeps its parent's MDP)."""
+    if trained_on is None or trained_on == spec.name:
+        return
+    parent = TASK_SPECS.get(trained_on)
+    if parent is None or not issubclass(spec.task, parent.task):
+        raise ValueError(f"{path}: a policy of task {trained_on!r} does not fly task {spec.name!r}")
 
 
-__all__ = ["CONTROLLERS", "TrimHold", "make_controller"]
+__all__ = ["CONTROLLERS", "TrimHold", "baseline_names", "make_controller"]

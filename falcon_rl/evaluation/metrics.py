@@ -99,17 +99,24 @@ def overshoot(error: torch.Tensor, direction: torch.Tensor,
     return signed.max(dim=-1).values.clamp_min(0.0)
 
 
-def settled_window(reference_rate: torch.Tensor, dt: float, grace_seconds: float,
-                   valid: torch.Tensor | None = None) -> torch.Tensor:
-    """[N, T] bool: the steps ``grace_seconds`` or more after the reference stopped moving for good
-    (its rate [N, T] is zero from there to the end)."""
+def ramp_end_index(reference_rate: torch.Tensor, valid: torch.Tensor | None = None) -> torch.Tensor:
+    """[N] long: first step from which the reference rate [N, T] is zero to the end of the scored
+    steps (the reference stopped moving for good); T when it still moves at the last step."""
     still = reference_rate == 0
     if valid is not None:
         still = still | ~valid
     holds = torch.flip(torch.cumprod(torch.flip(still, [-1]).long(), dim=-1), [-1]).bool()
     t = reference_rate.shape[-1]
     steps = torch.arange(t, device=reference_rate.device).expand_as(holds)
-    ramp_end = torch.where(holds, steps, t).min(dim=-1).values
+    return torch.where(holds, steps, t).min(dim=-1).values
+
+
+def settled_window(reference_rate: torch.Tensor, dt: float, grace_seconds: float,
+                   valid: torch.Tensor | None = None) -> torch.Tensor:
+    """[N, T] bool: the steps ``grace_seconds`` or more after the reference stopped moving for good
+    (its rate [N, T] is zero from there to the end)."""
+    ramp_end = ramp_end_index(reference_rate, valid)
+    steps = torch.arange(reference_rate.shape[-1], device=reference_rate.device).expand_as(reference_rate)
     window = steps >= (ramp_end + round(grace_seconds / dt))[:, None]
     return window if valid is None else window & valid
 

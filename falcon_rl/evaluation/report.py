@@ -1,4 +1,9 @@
-"""Tables of protocol results in the paper's layout: markdown for people, JSON for programs."""
+"""Tables of protocol results in the paper's layout: markdown for people, JSON for programs.
+
+Any registered task renders the same way: one section per task (its ``TaskSpec.title``), one column
+per ``TaskSpec.metrics`` entry, one row per result, or per result and case for protocols whose
+summary keys read "<case>/<metric>" (the attitude maneuvers).
+"""
 
 from __future__ import annotations
 
@@ -6,13 +11,8 @@ import json
 import math
 from pathlib import Path
 
+from ..envs.tasks import TASK_SPECS, Metric
 from .protocols import ProtocolResult
-
-ALTITUDE_COLUMNS = (("survival", "Surv."), ("acquisition", "Acq."), ("rmse_m", "RMSE (m)"),
-                    ("settling_time_s", "t_s (s)"), ("overshoot_m", "Over. (m)"))
-ATTITUDE_COLUMNS = (("bank_rmse_deg", "bank RMSE (deg)"), ("bank_time_in_band", "in band"),
-                    ("climb_rate_rmse_mps", "hdot RMSE (m/s)"), ("airspeed_rmse_mps", "V RMSE (m/s)"),
-                    ("survival", "Surv."))
 
 
 def _fmt(value: float) -> str:
@@ -21,25 +21,37 @@ def _fmt(value: float) -> str:
     return f"{value:.3g}" if abs(value) >= 1e-3 or value == 0 else f"{value:.1e}"
 
 
-def altitude_table(results: list[ProtocolResult]) -> str:
-    """| Airframe | Alg. | n | Surv. | Acq. | RMSE (m) | t_s (s) | Over. (m) | plan time |"""
-    head = "| Airframe | Alg. | n | " + " | ".join(h for _, h in ALTITUDE_COLUMNS) + " | s / control step |"
-    lines = [head, "|" + "---|" * (len(ALTITUDE_COLUMNS) + 4)]
-    for r in results:
-        cells = [_fmt(r.summary.get(k, math.nan)) for k, _ in ALTITUDE_COLUMNS]
-        lines.append(f"| {r.airframe} | {r.controller} | {r.settings['episodes']} | " + " | ".join(cells)
-                     + f" | {r.seconds_per_control_step:.2e} |")
-    return "\n".join(lines)
+def cases(result: ProtocolResult) -> list[str]:
+    """The "<case>/" prefixes of ``result.summary`` in order of appearance ([""] when it has none)."""
+    found = [key.split("/", 1)[0] for key in result.summary if "/" in key]
+    return list(dict.fromkeys(found)) or [""]
 
 
-def attitude_table(results: list[ProtocolResult]) -> str:
-    """One row per airframe, controller and maneuver."""
-    head = "| Airframe | Alg. | Maneuver | " + " | ".join(h for _, h in ATTITUDE_COLUMNS) + " |"
-    lines = [head, "|" + "---|" * (len(ATTITUDE_COLUMNS) + 3)]
+def _columns(results: list[ProtocolResult]) -> tuple[Metric, ...]:
+    """The task's metric columns; for an unregistered task, every metric of the first result."""
+    spec = TASK_SPECS.get(results[0].task)
+    if spec is not None and spec.metrics:
+        return spec.metrics
+    case = cases(results[0])[0]
+    prefix = f"{case}/" if case else ""
+    return tuple(Metric(key[len(prefix):], key[len(prefix):]) for key in results[0].summary
+                 if key.startswith(prefix))
+
+
+def task_table(results: list[ProtocolResult]) -> str:
+    """| Airframe | Alg. | [Case |] n | <metrics> | s / control step | for results of one task."""
+    columns = _columns(results)
+    with_cases = any(cases(r) != [""] for r in results)
+    head = ["Airframe", "Alg.", *(["Case"] if with_cases else []), "n", *(m.header for m in columns),
+            "s / control step"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in results:
-        for name in r.settings["maneuvers"]:  # type: ignore[union-attr]
-            cells = [_fmt(r.summary.get(f"{name}/{k}", math.nan)) for k, _ in ATTITUDE_COLUMNS]
-            lines.append(f"| {r.airframe} | {r.controller} | {name} | " + " | ".join(cells) + " |")
+        for case in cases(r):
+            prefix = f"{case}/" if case else ""
+            cells = [_fmt(r.summary.get(prefix + m.key, math.nan)) for m in columns]
+            lines.append("| " + " | ".join([r.airframe, r.controller, *([case] if with_cases else []),
+                                            str(r.settings.get("episodes", "")), *cells,
+                                            f"{r.seconds_per_control_step:.2e}"]) + " |")
     return "\n".join(lines)
 
 
@@ -51,15 +63,14 @@ def result_document(result: ProtocolResult) -> dict:
 
 
 def write_report(results: list[ProtocolResult], out: Path, figures: list[Path], title: str) -> Path:
-    """Write ``report.md`` and ``results.json`` under ``out``; returns the markdown path."""
+    """Write ``report.md`` (a section per task, in order of first appearance) and ``results.json``
+    under ``out``; returns the markdown path."""
     out.mkdir(parents=True, exist_ok=True)
-    altitude = [r for r in results if r.task == "altitude"]
-    attitude = [r for r in results if r.task == "attitude"]
     lines = [f"# {title}", ""]
-    if altitude:
-        lines += ["## Altitude acquisition and hold", "", altitude_table(altitude), ""]
-    if attitude:
-        lines += ["## Attitude maneuvers", "", attitude_table(attitude), ""]
+    for task in dict.fromkeys(r.task for r in results):
+        spec = TASK_SPECS.get(task)
+        heading = spec.title if spec is not None else task
+        lines += [f"## {heading}", "", task_table([r for r in results if r.task == task]), ""]
     lines += [f"![{p.stem}]({p.name})" for p in figures]
     report = out / "report.md"
     report.write_text("\n".join(lines) + "\n")

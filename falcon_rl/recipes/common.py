@@ -9,7 +9,7 @@ Networks (all read the env's "observation" [N, D] through one :class:`RunningNor
     QNet        obs [N, D], action [N, A] -> Q(s, a) [N, 1]               (SAC / TD3 critics)
 
 The deployed action of every algorithm is ``tanh(loc)`` (TanhNormal's deterministic sample), which
-is what :mod:`falcon_rl.recipes.export` bakes into a policy file.
+is what :mod:`falcon_rl.policies.format` bakes into a policy file.
 """
 
 from __future__ import annotations
@@ -24,16 +24,16 @@ import torch
 from torch import nn
 from torchrl.envs import Compose, ExcludeTransform, RewardSum, TransformedEnv
 
-from ..envs import FixedWingEnv, make_env
-
-ACTIVATIONS = {"tanh": nn.Tanh, "relu": nn.ReLU, "elu": nn.ELU, "silu": nn.SiLU}
+from ..envs import make_env, task_spec
+from ..policies.format import ACTIVATIONS
+from ..transforms import flight_env
 
 
 @dataclass
 class TrainConfig:
     """Fields every recipe has. Frames are env steps summed over the batch of envs."""
 
-    #: Task ("altitude" or "attitude"; the other tasks work with the same recipes).
+    #: A registered task; its ``TaskSpec.training[<algorithm>]`` holds the task's defaults of these fields.
     task: str = "altitude"
     #: Shipped airframe name or JSON path.
     airframe: str = "volantex_ranger"
@@ -72,10 +72,11 @@ class TrainConfig:
     checkpoint_every: int = 2_000_000
     #: Evaluate on a short protocol every this many frames (0: only at the end).
     eval_every: int = 0
-    #: Episodes of the periodic evaluation and of the final one, and the altitude episode length, s.
+    #: Episodes of the periodic evaluation and of the final one (on the task's protocol: per maneuver on
+    #: the attitude protocol), and their length, s (None: the protocol's own, 30 s on altitude).
     eval_episodes: int = 16
     final_eval_episodes: int = 100
-    eval_seconds: float = 30.0
+    eval_seconds: float | None = None
     #: Torch intra-op threads; 1 is fastest for these small tensors on a shared CPU.
     threads: int = 1
     #: Show a tqdm progress bar.
@@ -106,26 +107,18 @@ class OffPolicyConfig(TrainConfig):
     critic_activation: str = "relu"
 
 
-#: The altitude task's training env (PPO, SAC and TD3 alike): control at 20 Hz (decimation 5 of the
-#: 10 ms physics step), so that gamma 0.99 looks ~5 s ahead; a survival bonus that outweighs the
-#: shaping penalties (ending an episode never pays); no overshoot penalty; sigma_h 6 m so the
-#: Gaussian altitude term still has a gradient 10-15 m from the reference.
-ALTITUDE_ENV_OPTIONS: dict = {"decimation": 5, "survival_bonus": 1.0, "w_overshoot": 0.0,
-                              "sigma_altitude": 6.0}
-
-#: Per-task defaults of the off-policy recipes (SAC and TD3 add their own on top). On a CPU the
-#: gradient steps, not the simulator, bound the wall clock (one SAC step on a 256 batch costs
-#: 10-30 ms on one core), so: small networks (actor 64x64, critics 128x128), few envs and
-#: 16 envs x 16 steps = 256 frames feeding 64 updates (update-to-data ratio 0.25).
-#: Measured on the Ranger altitude task (seed 1, one free core, falcon_rl/policies/README.md): SAC
-#: and TD3 both reach survival 1, acquisition 1 and RMSE 0.37 / 0.35 m on the 100-episode protocol
-#: after 400 k frames (1,414 s / 1,127 s wall); at 100 k frames neither acquires reliably yet.
-OFF_POLICY_DEFAULTS: dict[str, dict] = {
-    task: {"num_envs": 16, "frames": 400_000, "reward_scale": 0.1, "rollout_steps": 16,
-           "updates_per_batch": 64, "batch_size": 256, "init_random_frames": 10_240, "cells": (64, 64),
-           "activation": "relu", "critic_cells": (128, 128), "checkpoint_every": 50_000, **extra}
-    for task, extra in {"altitude": {"episode_seconds": 20.0, "env_options": ALTITUDE_ENV_OPTIONS},
-                        "attitude": {"env_options": {"decimation": 5}}}.items()
+#: Task-independent defaults of the off-policy recipes (each task's ``TaskSpec.training["sac"/"td3"]``
+#: goes on top, e.g. the altitude task's training env). On a CPU the gradient steps, not the
+#: simulator, bound the wall clock (one SAC step on a 256 batch costs 10-30 ms on one core), so: small
+#: networks (actor 64x64, critics 128x128), few envs and 16 envs x 16 steps = 256 frames feeding 64
+#: updates (update-to-data ratio 0.25). Measured on the Ranger altitude task (seed 1, one free core,
+#: falcon_rl/policies/README.md): SAC and TD3 both reach survival 1, acquisition 1 and RMSE
+#: 0.37 / 0.35 m on the 100-episode protocol after 400 k frames (1,414 s / 1,127 s wall); at 100 k
+#: frames neither acquires reliably yet.
+OFF_POLICY_DEFAULTS: dict = {
+    "num_envs": 16, "frames": 400_000, "reward_scale": 0.1, "rollout_steps": 16, "updates_per_batch": 64,
+    "batch_size": 256, "init_random_frames": 10_240, "cells": (64, 64), "activation": "relu",
+    "critic_cells": (128, 128), "checkpoint_every": 50_000,
 }
 
 #: Entries of a transition kept in the replay buffer.
@@ -133,14 +126,16 @@ TRANSITION = ("observation", "action", ("next", "observation"), ("next", "reward
               ("next", "terminated"))
 
 
-def config_from(cls: type, task: str, defaults: dict[str, dict], **overrides) -> TrainConfig:
-    """``cls`` with the task's defaults, then ``overrides`` (None values are ignored)."""
+def config_from(cls: type, task: str, algorithm: str, defaults: dict | None = None,
+                **overrides) -> TrainConfig:
+    """``cls`` with the recipe's task-independent ``defaults``, then the task's defaults for
+    ``algorithm`` (``task_spec(task).training``), then ``overrides`` (None values are ignored)."""
     names = {f.name for f in fields(cls)}
     unknown = set(overrides) - names
     if unknown:
         raise TypeError(f"unknown {cls.__name__} fields {sorted(unknown)}")
     given = {k: v for k, v in overrides.items() if v is not None}
-    values = {**copy.deepcopy(defaults.get(task, {})), **given}
+    values = {**copy.deepcopy(defaults or {}), **task_spec(task).training_defaults(algorithm), **given}
     return cls(task=task, **values)
 
 
@@ -241,7 +236,7 @@ class PolicyNet(nn.Module):
         self.mlp[-1].bias[: self.act_dim] = torch.atanh(action.clamp(-0.95, 0.95)).to(self.mlp[-1].bias)
 
     def arch(self) -> dict:
-        """Plain description of the acting network (for :mod:`export`)."""
+        """Plain description of the acting network (the policy file's ``arch`` entry)."""
         linear = [m for m in self.mlp if isinstance(m, nn.Linear)]
         activation = next(k for k, v in ACTIVATIONS.items() if isinstance(self.mlp[1], v))
         return {"obs_dim": linear[0].in_features, "act_dim": self.act_dim,
@@ -288,19 +283,12 @@ def make_train_env(cfg: TrainConfig, num_envs: int | None = None, seed_offset: i
 def stagger_episodes(env: TransformedEnv, seed: int) -> None:
     """Spread the first truncations over the horizon: start each env's step counter at a random
     step, so that later batches hold every phase of the episode rather than all envs in lockstep."""
-    base: FixedWingEnv = env.base_env
-    g = torch.Generator().manual_seed(seed)
-    offsets = torch.randint(0, base.max_episode_steps, base.step_count.shape, generator=g)
-    base.step_count.copy_(offsets.to(base.step_count.device))
+    flight_env(env, "stagger_episodes").stagger_episodes(torch.Generator().manual_seed(seed))
 
 
-def trim_action(env: TransformedEnv) -> torch.Tensor | None:
-    """The task's trim command in its action channels [A] (None when the task has no trim)."""
-    task = env.base_env.task
-    trim, channels = getattr(task, "trim", None), getattr(task, "action_channels", None)
-    if trim is None or channels is None:
-        return None
-    return trim.command[list(channels)].float().cpu()
+def trim_action(env: TransformedEnv) -> torch.Tensor:
+    """The task's trim command in its action channels [A], float32 on the CPU."""
+    return flight_env(env, "trim_action").trim_action().float().cpu()
 
 
 def make_actor_net(cfg: TrainConfig, env: TransformedEnv, scale: str | None, **kwargs) -> PolicyNet:
@@ -361,7 +349,7 @@ def set_threads(cfg: TrainConfig) -> None:
         torch.set_num_threads(cfg.threads)
 
 
-__all__ = ["ACTIVATIONS", "ALTITUDE_ENV_OPTIONS", "OFF_POLICY_DEFAULTS", "TRANSITION", "Counters",
+__all__ = ["ACTIVATIONS", "OFF_POLICY_DEFAULTS", "TRANSITION", "Counters",
            "EpisodeStats", "OffPolicyConfig", "PolicyNet", "QNet", "RunningNorm", "TrainConfig", "ValueNet",
            "config_from", "make_actor_net", "make_train_env", "mlp", "observation_dims",
            "set_threads", "stagger_episodes", "trim_action"]

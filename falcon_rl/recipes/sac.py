@@ -32,12 +32,13 @@ class SACConfig(OffPolicyConfig):
     alpha_init: float = 0.1
 
 
+#: Task-independent defaults (the task's ``TaskSpec.training["sac"]`` goes on top).
 DEFAULTS = OFF_POLICY_DEFAULTS
 
 
 def make_config(task: str = "altitude", **overrides) -> SACConfig:
-    """SACConfig with the task's defaults, then ``overrides``."""
-    return config_from(SACConfig, task, DEFAULTS, **overrides)
+    """SACConfig with the recipe's defaults, the task's, then ``overrides``."""
+    return config_from(SACConfig, task, "sac", DEFAULTS, **overrides)
 
 
 def train(cfg: SACConfig) -> dict:

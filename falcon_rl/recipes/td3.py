@@ -39,12 +39,13 @@ class TD3Config(OffPolicyConfig):
     noise_clip: float = 0.5
 
 
+#: Task-independent defaults (the task's ``TaskSpec.training["td3"]`` goes on top).
 DEFAULTS = OFF_POLICY_DEFAULTS
 
 
 def make_config(task: str = "altitude", **overrides) -> TD3Config:
-    """TD3Config with the task's defaults, then ``overrides``."""
-    return config_from(TD3Config, task, DEFAULTS, **overrides)
+    """TD3Config with the recipe's defaults, the task's, then ``overrides``."""
+    return config_from(TD3Config, task, "td3", DEFAULTS, **overrides)
 
 
 def train(cfg: TD3Config) -> dict:

@@ -54,6 +54,11 @@ def plot_altitude(result: ProtocolResult, path: Path, shown: int = 10) -> Path:
     return path
 
 
+def plot_attitude(result: ProtocolResult, path: Path) -> Path:
+    """The attitude protocol's figure of one result: :func:`plot_bank_facets` of it alone."""
+    return plot_bank_facets([result], path)
+
+
 def plot_bank_facets(results: list[ProtocolResult], path: Path) -> Path:
     """Rows: maneuvers; columns: controllers. Commanded (dashed) vs achieved bank, +-8.6 deg band."""
     maneuvers = list(results[0].traces)

@@ -1,6 +1,8 @@
-"""Flight tasks, one small module each (observation, reward, termination, reference).
+"""Flight tasks, one small module each (observation, reward, termination, reference), each registering
+its :class:`TaskSpec` (gym id, evaluation protocol and metrics, baselines, figure, training defaults).
 
-``TASKS`` maps a task name to its (Task class, config dataclass).
+``task_spec(name)`` is the record of a task; ``TASKS`` maps a task name to its (Task class, config
+dataclass) and ``TASK_SPECS`` to its spec (both live, read-only views of the registry).
 """
 
 from __future__ import annotations
@@ -10,18 +12,23 @@ from .attitude import AttitudeConfig, AttitudeTask
 from .base import Task, TaskConfig
 from .climb_descend import ClimbDescendConfig, ClimbDescendTask
 from .path_following import PathFollowingConfig, PathFollowingTask
+from .registry import (
+    TASK_SPECS,
+    TASKS,
+    TRIM_HOLD,
+    Metric,
+    TaskSpec,
+    register_task,
+    resolve,
+    task_names,
+    task_spec,
+    unregister_task,
+)
 from .trajectory import TrajectoryConfig, TrajectoryTask
 
-TASKS: dict[str, tuple[type[Task], type[TaskConfig]]] = {
-    "altitude": (AltitudeTask, AltitudeConfig),
-    "attitude": (AttitudeTask, AttitudeConfig),
-    "climb_descend": (ClimbDescendTask, ClimbDescendConfig),
-    "path_following": (PathFollowingTask, PathFollowingConfig),
-    "trajectory": (TrajectoryTask, TrajectoryConfig),
-}
-
 __all__ = [
-    "TASKS", "AltitudeConfig", "AltitudeTask", "AttitudeConfig", "AttitudeTask", "ClimbDescendConfig",
-    "ClimbDescendTask", "PathFollowingConfig", "PathFollowingTask", "Task", "TaskConfig",
-    "TrajectoryConfig", "TrajectoryTask",
+    "TASKS", "TASK_SPECS", "TRIM_HOLD", "AltitudeConfig", "AltitudeTask", "AttitudeConfig", "AttitudeTask",
+    "ClimbDescendConfig", "ClimbDescendTask", "Metric", "PathFollowingConfig", "PathFollowingTask", "Task",
+    "TaskConfig", "TaskSpec", "TrajectoryConfig", "TrajectoryTask", "register_task", "resolve", "task_names",
+    "task_spec", "unregister_task",
 ]

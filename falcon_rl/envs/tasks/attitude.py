@@ -34,9 +34,12 @@ from dataclasses import dataclass
 import torch
 from tensordict import TensorDictBase
 
+from ...constants import DEG
 from ...physics import Simulator
+from ...physics import state as S
 from ..maneuvers import RandomCommandStream, maneuver_stream
-from .base import DEG, Task, TaskConfig, airspeed_margin_penalty, gaussian
+from .base import Task, TaskConfig, airspeed_margin_penalty, gaussian
+from .registry import TRIM_HOLD, Metric, TaskSpec, register_task
 
 
 @dataclass
@@ -125,8 +128,8 @@ class AttitudeTask(Task):
         self.commanded.copy_(self._current_command())
 
     def _update_errors(self, state: TensorDictBase) -> None:
-        climb_rate = -state["velocity_ned"][:, 2]
-        actual = torch.stack([state["euler"][:, 0], climb_rate, state["airspeed"]], dim=-1)
+        climb_rate = -state["velocity_ned"][:, S.DOWN]
+        actual = torch.stack([state["euler"][:, S.ROLL], climb_rate, state["airspeed"]], dim=-1)
         self.errors.copy_(actual - self.commanded)
 
     # ------------------------------------------------------------------ MDP
@@ -136,12 +139,13 @@ class AttitudeTask(Task):
     def observe(self, state: TensorDictBase) -> torch.Tensor:
         # Errors from the state being observed (measured when a sensor chain is on), not the
         # true-state errors that the reward and metrics use.
-        climb_rate = -state["velocity_ned"][:, 2]
-        errors = torch.stack([state["euler"][:, 0], climb_rate, state["airspeed"]], dim=-1) - self.commanded
+        climb_rate = -state["velocity_ned"][:, S.DOWN]
+        actual = torch.stack([state["euler"][:, S.ROLL], climb_rate, state["airspeed"]], dim=-1)
+        errors = actual - self.commanded
         rates = state["angular_rate_body"] / 2.0
         euler = state["euler"][:, :2] / (math.pi / 4)
         air = torch.stack([state["alpha"], state["beta"]], dim=-1) / (20.0 * DEG)
-        v_z = state["velocity_ned"][:, 2:3] / self.climb_scale
+        v_z = state["velocity_ned"][:, S.DOWN, None] / self.climb_scale
         obs = torch.cat([errors / self.error_scale, euler, rates, air, v_z, self.previous_action],
                         dim=-1)
         return obs.clamp(-self.observation_clip, self.observation_clip)
@@ -166,3 +170,23 @@ class AttitudeTask(Task):
             "climb_rate_error": self.errors[:, 1].clone(),
             "airspeed_error": self.errors[:, 2].clone(),
         }
+
+
+#: Training defaults (on top of each recipe's own): 20 Hz control (decimation 5), the task's own reward;
+#: PPO's training return plateaus after ~3 M of the 8 M frames. The protocol flies ``episodes`` per
+#: maneuver, so the evaluations fly 4 (periodic) and 25 (final) episodes of each of the four.
+_TRAINING = {"env_options": {"decimation": 5}, "eval_episodes": 4, "final_eval_episodes": 25}
+
+SPEC = register_task(TaskSpec(
+    name="attitude", task=AttitudeTask, config=AttitudeConfig, gym_id="falcon_rl/Attitude-v0",
+    title="Attitude maneuvers",
+    protocol="falcon_rl.evaluation.protocols:attitude_protocol",
+    metrics=(Metric("bank_rmse_deg", "bank RMSE", "deg"), Metric("bank_time_in_band", "in band"),
+             Metric("climb_rate_rmse_mps", "hdot RMSE", "m/s"), Metric("airspeed_rmse_mps", "V RMSE", "m/s"),
+             Metric("survival", "Surv.")),
+    controllers={"lqr": "falcon_rl.baselines.lqr:AttitudeLQR.from_env",
+                 "mppi": "falcon_rl.baselines.mppi:attitude_mppi", "trim": TRIM_HOLD},
+    figure="falcon_rl.viz.evaluation:plot_attitude",
+    training={"ppo": {"num_envs": 256, "frames": 8_000_000, "reward_scale": 0.1, **_TRAINING},
+              "sac": _TRAINING, "td3": _TRAINING},
+))

@@ -34,8 +34,6 @@ from ...physics import Simulator, trim_level
 from ...physics import state as S
 from ...physics.rotations import quaternion_to_euler
 
-DEG = math.pi / 180.0
-
 _TRIM_CACHE: dict[tuple[str, str, float, float, str], tuple[torch.Tensor, torch.Tensor]] = {}
 
 
@@ -61,10 +59,11 @@ def trim_point(sim: Simulator, airspeed: float, height: float = 100.0,
         trim = trim_level(airframe, airspeed, height, ground_effect=ground_effect)
         _TRIM_CACHE[key] = (trim.state[0].clone(), trim.commands[0].clone())
     x, command = (t.to(sim.device, sim.dtype) for t in _TRIM_CACHE[key])
+    f = S.StateLayout(airframe.num_motors).unpack(x)
     return TrimPoint(
-        quaternion=x[S.QUATERNION], velocity_body=x[S.VELOCITY], surface_position=x[S.SURFACE_POSITION],
-        throttle=x[S.THROTTLE_START:], command=command,
-        pitch=float(quaternion_to_euler(x[S.QUATERNION][None])[0, 1]),
+        quaternion=f["quaternion"], velocity_body=f["velocity_body"], surface_position=f["surface_position"],
+        throttle=f["throttle"], command=command,
+        pitch=float(quaternion_to_euler(f["quaternion"][None])[0, S.PITCH]),
     )
 
 
@@ -88,7 +87,7 @@ class Task(ABC):
     action_dim: ClassVar[int]
     observation_clip: ClassVar[float]
     #: Simulator command channels the action drives, in action order (0 elevator .. 3 throttle).
-    action_channels: ClassVar[tuple[int, ...]] = (0, 1, 2, 3)
+    action_channels: ClassVar[tuple[int, ...]] = (S.ELEVATOR, S.AILERON, S.RUDDER, S.THROTTLE)
 
     def __init__(self, config: TaskConfig, sim: Simulator, generator: torch.Generator,
                  env_dt: float, ground_effect: bool | str = True):

@@ -18,7 +18,8 @@ Action [delta_e, delta_a, delta_r, delta_t]. Reward:
         - w_s ||a_t - a_{t-1}||^2
 
 Termination: ground contact, stall, or |e_y| > ``lost_distance``. Published: cross_track_error,
-course_error, altitude_error.
+course_error, altitude_error and the path: path_point [2] (north, east, m), path_course (rad),
+path_height (m).
 """
 
 from __future__ import annotations
@@ -29,8 +30,11 @@ from dataclasses import dataclass
 import torch
 from tensordict import TensorDictBase
 
+from ...constants import DEG
 from ...physics import Simulator
-from .base import DEG, Task, TaskConfig, airspeed_margin_penalty, gaussian, wrap_angle
+from ...physics import state as S
+from .base import Task, TaskConfig, airspeed_margin_penalty, gaussian, wrap_angle
+from .registry import TRIM_HOLD, Metric, TaskSpec, register_task
 
 
 @dataclass
@@ -92,9 +96,9 @@ class PathFollowingTask(Task):
     def update(self, state: TensorDictBase) -> None:
         rel = state["position_ned"][:, :2] - self.path_point
         sin_c, cos_c = torch.sin(self.path_course), torch.cos(self.path_course)
-        cross_track = -sin_c * rel[:, 0] + cos_c * rel[:, 1]
+        cross_track = -sin_c * rel[:, S.NORTH] + cos_c * rel[:, S.EAST]
         v = state["velocity_ned"]
-        course_error = wrap_angle(torch.atan2(v[:, 1], v[:, 0]) - self.path_course)
+        course_error = wrap_angle(torch.atan2(v[:, S.EAST], v[:, S.NORTH]) - self.path_course)
         altitude_error = state["height"] - self.config.initial_height
         self.errors.copy_(torch.stack([cross_track, course_error, altitude_error], dim=-1))
 
@@ -104,9 +108,9 @@ class PathFollowingTask(Task):
         e_y, chi, e_h = self.errors.unbind(-1)
         scalars = torch.stack([
             e_y / 50.0, torch.sin(chi), torch.cos(chi), e_h / 25.0,
-            state["velocity_ned"][:, 2] / env.climb_rate_limit,
+            state["velocity_ned"][:, S.DOWN] / env.climb_rate_limit,
             (state["airspeed"] - env.cruise_speed) / (cfg.airspeed_scale * env.cruise_speed),
-            state["euler"][:, 0] / (math.pi / 4), state["euler"][:, 1] / (math.pi / 4),
+            state["euler"][:, S.ROLL] / (math.pi / 4), state["euler"][:, S.PITCH] / (math.pi / 4),
             state["alpha"] / (20.0 * DEG), state["beta"] / (20.0 * DEG),
         ], dim=-1)
         obs = torch.cat([scalars, state["angular_rate_body"] / 2.0, self.previous_action], dim=-1)
@@ -127,4 +131,18 @@ class PathFollowingTask(Task):
 
     def info(self) -> dict[str, torch.Tensor]:
         return {"cross_track_error": self.errors[:, 0].clone(), "course_error": self.errors[:, 1].clone(),
-                "altitude_error": self.errors[:, 2].clone()}
+                "altitude_error": self.errors[:, 2].clone(), "path_point": self.path_point.clone(),
+                "path_course": self.path_course.clone(),
+                "path_height": torch.full_like(self.path_course, self.config.initial_height)}
+
+
+SPEC = register_task(TaskSpec(
+    name="path_following", task=PathFollowingTask, config=PathFollowingConfig,
+    gym_id="falcon_rl/PathFollowing-v0", title="Straight-line path following",
+    protocol="falcon_rl.evaluation.protocols:path_following_protocol",
+    metrics=(Metric("survival", "Surv."), Metric("completion", "Compl."),
+             Metric("cross_track_rmse_m", "e_y RMSE", "m"), Metric("capture_time_s", "t_capture", "s"),
+             Metric("course_rmse_deg", "course RMSE", "deg"), Metric("altitude_rmse_m", "h RMSE", "m")),
+    controllers={"trim": TRIM_HOLD},
+    figure="falcon_rl.viz.tracking:plot_path_following",
+))

@@ -32,9 +32,11 @@ from dataclasses import dataclass
 import torch
 from tensordict import TensorDictBase
 
+from ...constants import DEG, G0
 from ...physics import Simulator
-from ..maneuvers import GRAVITY
-from .base import DEG, Task, TaskConfig, airspeed_margin_penalty, gaussian
+from ...physics import state as S
+from .base import Task, TaskConfig, airspeed_margin_penalty, gaussian
+from .registry import TRIM_HOLD, Metric, TaskSpec, register_task
 
 
 @dataclass
@@ -94,7 +96,7 @@ class TrajectoryTask(Task):
             self.uniform(-cfg.lateral_max, cfg.lateral_max),
             -cfg.initial_height + self.uniform(-cfg.vertical_max, cfg.vertical_max)], dim=-1)
         bank = self.uniform(cfg.bank_min, cfg.bank_max) * env.max_bank
-        radius = self.speed**2 / (GRAVITY * torch.tan(bank))
+        radius = self.speed**2 / (G0 * torch.tan(bank))
         climb = self.uniform(-cfg.climb_fraction, cfg.climb_fraction) * env.climb_rate_limit
         self.start.copy_(torch.where(mask[:, None], start, self.start))
         for buffer, value in ((self.radius, radius), (self.turn, self.random_sign()), (self.climb, climb)):
@@ -123,14 +125,15 @@ class TrajectoryTask(Task):
         self.advance_reference()
 
     def update(self, state: TensorDictBase) -> None:
-        yaw = state["euler"][:, 2]
+        yaw = state["euler"][:, S.YAW]
         sin_y, cos_y = torch.sin(yaw), torch.cos(yaw)
         e_p = state["position_ned"] - self.reference_position
         e_v = state["velocity_ned"] - self.reference_velocity
         self.position_error_ned.copy_(e_p)
         for out, e in ((self.position_error, e_p), (self.velocity_error, e_v)):
-            out.copy_(torch.stack([cos_y * e[:, 0] + sin_y * e[:, 1], -sin_y * e[:, 0] + cos_y * e[:, 1],
-                                   e[:, 2]], dim=-1))
+            north, east, down = e[:, S.NORTH], e[:, S.EAST], e[:, S.DOWN]
+            out.copy_(torch.stack([cos_y * north + sin_y * east, -sin_y * north + cos_y * east, down],
+                                  dim=-1))
 
     def observe(self, state: TensorDictBase) -> torch.Tensor:
         sigma_v = self.config.airspeed_scale * self.speed
@@ -159,3 +162,15 @@ class TrajectoryTask(Task):
                 "position_error_ned": self.position_error_ned.clone(),
                 "reference_position": self.reference_position.clone(),
                 "reference_velocity": self.reference_velocity.clone()}
+
+
+SPEC = register_task(TaskSpec(
+    name="trajectory", task=TrajectoryTask, config=TrajectoryConfig, gym_id="falcon_rl/Trajectory-v0",
+    title="3D trajectory tracking",
+    protocol="falcon_rl.evaluation.protocols:trajectory_protocol",
+    metrics=(Metric("survival", "Surv."), Metric("position_rmse_m", "RMSE", "m"),
+             Metric("horizontal_rmse_m", "horiz. RMSE", "m"), Metric("vertical_rmse_m", "vert. RMSE", "m"),
+             Metric("time_in_band", "in band")),
+    controllers={"trim": TRIM_HOLD},
+    figure="falcon_rl.viz.tracking:plot_trajectory",
+))

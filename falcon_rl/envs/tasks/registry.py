@@ -1,0 +1,189 @@
+"""One record per task: :class:`TaskSpec` holds everything that is known about a task by its name.
+
+    spec = task_spec("altitude")
+    env = make_env(spec.name, "volantex_ranger")                     # spec.task, spec.config
+    policy = spec.controller("lqr")(env)                              # a baseline that applies
+    result = spec.protocol_function()(airframe, label, factory, episodes=20)
+    defaults = spec.training_defaults("ppo")                          # recipe fields of the task
+
+Every task module registers its own spec beside its Task and config classes; a task defined
+elsewhere (a user's module, a test) registers one the same way and is then reached by ``make_env``,
+the Gymnasium ids (after ``register_gym_envs()``), the evaluation harness and ``falcon-rl eval``.
+
+Layering: the task modules sit below the evaluation, baseline and recipe code their spec names, so
+the protocol, the controllers and the figure are references (:data:`Ref`): either the object itself
+or a ``"package.module:attribute"`` string that :func:`resolve` imports at use. The training
+defaults are plain data.
+"""
+
+from __future__ import annotations
+
+import copy
+import importlib
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Any, Generic, TypeVar
+
+from .base import Task, TaskConfig
+
+#: A callable, or the "package.module:attribute.path" of one (imported at use).
+Ref = str | Callable[..., Any]
+
+#: The controller every task has: hold the trim command in the action channels.
+TRIM_HOLD: str = "falcon_rl.evaluation.controllers:TrimHold"
+
+#: Recipe names the training defaults may be given for.
+ALGORITHMS: tuple[str, ...] = ("ppo", "sac", "td3")
+
+
+def resolve(ref: Ref) -> Callable[..., Any]:
+    """The object named by ``ref`` ("module:attr.attr") or ``ref`` itself when it is callable."""
+    if not isinstance(ref, str):
+        return ref
+    module_name, sep, attribute = ref.partition(":")
+    if not sep or not attribute:
+        raise ValueError(f"reference {ref!r} must read 'package.module:attribute'")
+    target: Any = importlib.import_module(module_name)
+    for name in attribute.split("."):
+        target = getattr(target, name)
+    return target
+
+
+@dataclass(frozen=True)
+class Metric:
+    """One column of a task's protocol summary: its key, a short label and its unit."""
+
+    #: Key in ``ProtocolResult.summary`` (prefixed "<case>/" for protocols with cases, e.g. maneuvers).
+    key: str
+    label: str
+    #: SI unit ("m", "m/s", "s", "deg"); "" for fractions and counts.
+    unit: str = ""
+
+    @property
+    def header(self) -> str:
+        """Column header, e.g. "RMSE (m)"."""
+        return f"{self.label} ({self.unit})" if self.unit else self.label
+
+
+@dataclass(frozen=True, eq=False)
+class TaskSpec:
+    """Everything about one task, found from its name (see the module docstring). Read-only; compared
+    and hashed by identity (one record per registered task).
+
+    ``protocol`` is called as ``protocol(airframe, controller_label, factory, episodes=..., seed=...,
+    backend=..., device=..., episode_seconds=None, **options) -> ProtocolResult`` where ``factory``
+    builds the policy for the protocol's env. ``controllers`` maps a controller name to a factory
+    ``(env) -> policy`` (TensorDictModule reading the env's keys, writing "action"). ``figure`` is
+    called as ``figure(result, path) -> path``. ``training`` maps a recipe name (ppo, sac, td3) to the
+    fields of its config that this task sets on top of the recipe's own defaults.
+    """
+
+    name: str
+    task: type[Task]
+    config: type[TaskConfig]
+    #: Gymnasium id, "falcon_rl/<Task>-v0".
+    gym_id: str
+    #: Report section heading.
+    title: str
+    protocol: Ref | None = None
+    #: The summary columns the protocol produces, in report order.
+    metrics: tuple[Metric, ...] = ()
+    controllers: Mapping[str, Ref] = field(default_factory=dict)
+    figure: Ref | None = None
+    training: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        unknown = set(self.training) - set(ALGORITHMS)
+        if unknown:
+            raise ValueError(f"task {self.name!r}: training defaults for unknown recipes {sorted(unknown)}; "
+                             f"recipes: {list(ALGORITHMS)}")
+        object.__setattr__(self, "controllers", MappingProxyType(dict(self.controllers)))
+        object.__setattr__(self, "training", MappingProxyType(
+            {name: MappingProxyType(dict(values)) for name, values in self.training.items()}))
+
+    def controller(self, name: str) -> Callable[..., Any]:
+        """Factory ``(env) -> policy`` of baseline ``name``; one-line ValueError naming the baselines
+        that apply when ``name`` is not one of them."""
+        if name not in self.controllers:
+            raise ValueError(f"controller {name!r} does not apply to task {self.name!r}; its controllers: "
+                             f"{sorted(self.controllers)} (or a policy file of this task)")
+        return resolve(self.controllers[name])
+
+    def protocol_function(self) -> Callable[..., Any]:
+        """The evaluation protocol (see the class docstring); ValueError when the task has none."""
+        if self.protocol is None:
+            raise ValueError(f"task {self.name!r} has no evaluation protocol")
+        return resolve(self.protocol)
+
+    def figure_function(self) -> Callable[..., Any] | None:
+        """``figure(result, path) -> path``, or None when the task has no figure."""
+        return None if self.figure is None else resolve(self.figure)
+
+    def training_defaults(self, algorithm: str) -> dict[str, Any]:
+        """A fresh (deep) copy of the config fields this task sets for recipe ``algorithm``."""
+        return copy.deepcopy(dict(self.training.get(algorithm, {})))
+
+
+_SPECS: dict[str, TaskSpec] = {}
+
+#: Read-only live view: task name -> TaskSpec.
+TASK_SPECS: Mapping[str, TaskSpec] = MappingProxyType(_SPECS)
+
+
+def register_task(spec: TaskSpec, replace: bool = False) -> TaskSpec:
+    """Add ``spec`` to the registry (``replace`` to overwrite a task of the same name); returns it."""
+    if spec.name in _SPECS and not replace:
+        raise ValueError(f"task {spec.name!r} is already registered (pass replace=True to overwrite it)")
+    taken = {other.gym_id: other.name for other in _SPECS.values() if other.name != spec.name}
+    if spec.gym_id in taken:
+        raise ValueError(f"gym id {spec.gym_id!r} of task {spec.name!r} is taken by {taken[spec.gym_id]!r}")
+    _SPECS[spec.name] = spec
+    return spec
+
+
+def unregister_task(name: str) -> TaskSpec:
+    """Remove task ``name`` from the registry (a test's teardown); returns its spec."""
+    return _SPECS.pop(task_spec(name).name)
+
+
+def task_spec(name: str) -> TaskSpec:
+    """The spec of task ``name``; a one-line ValueError listing the registered tasks otherwise."""
+    try:
+        return _SPECS[name]
+    except (KeyError, TypeError):
+        raise ValueError(f"unknown task {name!r}; registered tasks: {sorted(_SPECS)}") from None
+
+
+def task_names() -> list[str]:
+    """Registered task names, in registration order."""
+    return list(_SPECS)
+
+
+V = TypeVar("V")
+
+
+class SpecView(Mapping[str, V], Generic[V]):
+    """Read-only live view of the registry: task name -> ``pick(spec)``."""
+
+    def __init__(self, pick: Callable[[TaskSpec], V]):
+        self._pick = pick
+
+    def __getitem__(self, name: str) -> V:
+        return self._pick(_SPECS[name])
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(list(_SPECS))
+
+    def __len__(self) -> int:
+        return len(_SPECS)
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({dict(self)!r})"
+
+
+#: Task name -> (Task class, config dataclass), as before the registry (a live view of it).
+TASKS: Mapping[str, tuple[type[Task], type[TaskConfig]]] = SpecView(lambda spec: (spec.task, spec.config))
+
+__all__ = ["ALGORITHMS", "TASKS", "TASK_SPECS", "TRIM_HOLD", "Metric", "Ref", "SpecView", "TaskSpec",
+           "register_task", "resolve", "task_names", "task_spec", "unregister_task"]
