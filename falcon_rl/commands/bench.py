@@ -10,12 +10,21 @@ from ._common import UsageError, emit
 NAME = "bench"
 HELP = "time Simulator.step (and the TorchRL env) per backend and env count, optionally vs JSBSim"
 
-_BACKENDS = ("torch", "torch-compile", "warp", "scipy")
+#: Not an engine of its own: the torch engine with ``compile=True``.
+TORCH_COMPILE = "torch-compile"
+
+
+def bench_backends() -> tuple[str, ...]:
+    """The registered engines (``physics.backends.ENGINES``) plus torch-compile."""
+    from ..physics.backends import ENGINES
+
+    return (*ENGINES, TORCH_COMPILE)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--backend", default="torch,warp",
-                        help="comma list of torch, torch-compile (torch through torch.compile), warp, scipy")
+                        help="comma list of registered backends (torch, warp, scipy, ...) and torch-compile "
+                             "(torch through torch.compile)")
     parser.add_argument("--envs", default="1,64,1024,4096", help="comma list of env counts")
     parser.add_argument("--steps", type=int, default=100, help="steps per timed trial")
     parser.add_argument("--trials", type=int, default=5, help="timed trials per case (>= 5)")
@@ -35,9 +44,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _parse(args: argparse.Namespace) -> tuple[list[str], list[int]]:
     backends = [b.strip() for b in args.backend.split(",") if b.strip()]
-    bad = [b for b in backends if b not in _BACKENDS]
+    known = bench_backends()
+    bad = [b for b in backends if b not in known]
     if not backends or bad:
-        raise UsageError(f"--backend must be a comma list of {', '.join(_BACKENDS)}; got {args.backend!r}")
+        raise UsageError(f"--backend must be a comma list of {', '.join(known)}; got {args.backend!r}")
     try:
         envs = [int(n) for n in args.envs.split(",") if n.strip()]
     except ValueError:
