@@ -107,6 +107,9 @@ class FixedWingEnv(EnvBase):
     max_episode_steps                  int         truncation once episode_step reaches it; recipes
     set_episode_step(values, mask)     [N] or int  start counters mid-episode; stagger_episodes
     stagger_episodes(generator)        -           counters uniform in {0, ..., max - 1}; recipes
+    random_state()                     {tensors}   the env's and the simulator's generator states and
+                                                   the turbulence stream counter; checkpoints
+    set_random_state(states)           -           restore them (resume continues the same draws)
     =================================  ==========  ==================================================
 
     Parameter names: any per-env ``ModelParams`` field may be read (e.g. ``chord``, ``span``); only
@@ -287,6 +290,23 @@ class FixedWingEnv(EnvBase):
             raise ValueError(f"episode steps must lie in [0, {self.max_episode_steps}), got "
                              f"[{int(values.min())}, {int(values.max())}]")
         self.step_count[rows] = values.expand(n)[rows]
+
+    def random_state(self) -> dict[str, torch.Tensor]:
+        """{"env", "sim"[, "turbulence"]}: the env's generator state (episode draws), the simulator's
+        (torch Dryden noise) and the Warp turbulence stream's (seed, step) [2] int32 (copies)."""
+        states = {"env": self.generator.get_state(), "sim": self.sim.generator.get_state()}
+        if self.sim.turbulence is not None:
+            states["turbulence"] = self.sim.turbulence.rng.clone()
+        return states
+
+    def set_random_state(self, states: dict[str, torch.Tensor]) -> None:
+        """Restore what :meth:`random_state` returned (entries it lacks are left as they are)."""
+        if "env" in states:
+            self.generator.set_state(states["env"])
+        if "sim" in states:
+            self.sim.generator.set_state(states["sim"])
+        if "turbulence" in states and self.sim.turbulence is not None:
+            self.sim.turbulence.rng.copy_(states["turbulence"])
 
     def stagger_episodes(self, generator: torch.Generator) -> None:
         """Start each env's step counter at a step drawn uniformly in [0, max_episode_steps) with

@@ -127,7 +127,7 @@ def tracking_protocol(task: str, metrics: EpisodeMetrics, traces: tuple, airfram
     episode_metrics = metrics(rollout)
     summary = in_units(summarize(episode_metrics, episode_metrics["survival"]))
     settings = {"episodes": episodes, "seed": seed, "backend": backend, "device": device, **env_options,
-                "episode_seconds": env.task.episode_seconds, "dt": env.env_dt}
+                "episode_seconds": env.max_episode_steps * env.control_dt, "dt": env.control_dt}
     traces_kept = {task: rollout.select(*traces)}
     return ProtocolResult(task, airframe, controller, summary, episode_metrics, traces_kept, settings,
                           per_step)

@@ -23,21 +23,19 @@ import torch
 from tensordict import TensorDict
 
 from ..policies.format import atomic_save
+from ..transforms import flight_env
 
 FORMAT = 1
 
 
 def rng_states(env=None) -> dict[str, torch.Tensor]:
-    """Torch's global RNG state and the env's and simulator's generators (when given)."""
+    """Torch's global RNG state and the env's random state (``random_state()`` of the flight-env
+    interface: its generator, the simulator's, the turbulence stream counter) when given."""
     states = {"torch": torch.get_rng_state()}
     if torch.cuda.is_available() and torch.cuda.is_initialized():
         states["cuda"] = torch.cuda.get_rng_state()
     if env is not None:
-        base = getattr(env, "base_env", env)
-        states["env"] = base.generator.get_state()
-        sim_generator = getattr(base.sim, "generator", None)
-        if isinstance(sim_generator, torch.Generator):
-            states["sim"] = sim_generator.get_state()
+        states.update(flight_env(env, "random_state").random_state())
     return states
 
 
@@ -46,12 +44,8 @@ def set_rng_states(states: dict[str, torch.Tensor], env=None) -> None:
     if "cuda" in states and torch.cuda.is_available():
         torch.cuda.set_rng_state(states["cuda"])
     if env is not None:
-        base = getattr(env, "base_env", env)
-        if "env" in states:
-            base.generator.set_state(states["env"])
-        sim_generator = getattr(base.sim, "generator", None)
-        if "sim" in states and isinstance(sim_generator, torch.Generator):
-            sim_generator.set_state(states["sim"])
+        flight_env(env, "set_random_state").set_random_state(
+            {k: v for k, v in states.items() if k not in ("torch", "cuda")})
 
 
 def save_checkpoint(path: str | Path, *, algorithm: str, config: dict, counters: dict,

@@ -18,6 +18,7 @@ from torchrl.envs import Transform, TransformedEnv
 FLIGHT_ENV_INTERFACE: tuple[str, ...] = (
     "control_dt", "observe", "trim_action", "physical_parameters", "nominal_physical_parameters",
     "set_physical_parameters", "episode_step", "max_episode_steps", "set_episode_step", "stagger_episodes",
+    "random_state", "set_random_state",
 )
 
 
@@ -47,6 +48,10 @@ class FlightEnv(Protocol):
     def set_episode_step(self, values: torch.Tensor | int, mask: torch.Tensor | None = None) -> None: ...
 
     def stagger_episodes(self, generator: torch.Generator) -> None: ...
+
+    def random_state(self) -> dict[str, torch.Tensor]: ...
+
+    def set_random_state(self, states: dict[str, torch.Tensor]) -> None: ...
 
 
 def flight_env(source: object, *members: str) -> FlightEnv:
