@@ -18,8 +18,9 @@ def make_env(task: str, airframe: str = "navion", num_envs: int = 1, backend: st
     """Build a :class:`FixedWingEnv` for ``task`` (a registered task, see ``task_spec``) on ``airframe``.
 
     ``options`` name fields of :class:`FixedWingEnvConfig` (dt, decimation, integrator,
-    ground_effect, wind, turbulence) or of the task's config dataclass (episode_seconds,
-    target_altitudes, maneuver, reward weights, ...); an unknown name raises ``TypeError``.
+    ground_effect, wind, turbulence, model: the switches of ``falcon_rl.physics.switches``) or of
+    the task's config dataclass (episode_seconds, target_altitudes, maneuver, reward weights, ...);
+    an unknown name raises ``TypeError``.
 
     Robustness (all off by default; see :mod:`falcon_rl.transforms`): ``sensors`` (a grid name
     "nominal" | "mild" | "medium" | "severe" or a SensorConfig), ``obs_delay_ms`` and

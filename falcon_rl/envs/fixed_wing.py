@@ -20,8 +20,9 @@ command; the state is read once per env step.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import torch
 from tensordict import TensorDict, TensorDictBase
@@ -31,6 +32,7 @@ from torchrl.envs import EnvBase
 from ..airframe import Airframe, load_airframe
 from ..physics import Simulator
 from ..physics.params import RANDOMIZABLE_PARAMETERS
+from ..physics.switches import ModelSwitches
 from ..physics.wind import TurbulenceConfig
 from ..transforms.presets import nominal_height, resolve_turbulence
 from .tasks import TaskConfig, task_spec
@@ -78,6 +80,9 @@ class FixedWingEnvConfig:
     #: a robustness-grid name ("mild", "medium"), a float sigma_u / V_a at the task's trim airspeed
     #: and nominal height, or a TurbulenceConfig (see ``falcon_rl.transforms.presets``).
     turbulence: str | float | TurbulenceConfig | None = None
+    #: Model switches for ablations: None (the full model), a ``ModelSwitches`` or a mapping of its
+    #: fields, e.g. {"actuators": "ideal", "throttle_lag": False} (see ``falcon_rl.physics.switches``).
+    model: ModelSwitches | Mapping[str, Any] | None = None
     #: The task's config; None takes the task's defaults.
     task_config: TaskConfig | None = field(default=None)
 
@@ -137,7 +142,7 @@ class FixedWingEnv(EnvBase):
                              device=device, dt=config.dt, integrator=config.integrator,
                              ground_effect=config.ground_effect,
                              wind=None if config.wind is None else list(config.wind),
-                             turbulence=turbulence, seed=config.seed)
+                             turbulence=turbulence, seed=config.seed, model=config.model)
         self.generator = torch.Generator(device=device)
         self.env_dt = config.dt * config.decimation
         self.task = task_cls(task_config, self.sim, self.generator, self.env_dt, config.ground_effect)

@@ -5,6 +5,11 @@ Commands in [-1, 1] are clipped and mapped affinely onto [min, max] deflection (
 (x'' = w_n^2 (x_c - x) - 2 zeta w_n x'); each motor's throttle is first order. Positions used by
 the forces are clamped to the limits, and ``saturate`` clamps the integrated state after each step
 (zeroing the rate where the limit is hit).
+
+Model switches (``switches.ModelSwitches``), per env: with ``ideal_actuators`` the surfaces follow
+the command with zero lag (``hold_ideal`` sets position = clamped target and rate = 0 before each
+step, the command is held over the step and the derivative is zero); with ``ideal_throttle`` the
+throttle state is likewise the commanded throttle.
 """
 
 from __future__ import annotations
@@ -43,7 +48,26 @@ def actuator_derivative(
     d_rate = torch.where(second, wn * wn * (target - position) - 2.0 * p.actuator_damping * wn * rate,
                          torch.zeros_like(rate))
     d_throttle = (throttle_target.unsqueeze(-1) - throttle) / p.throttle_time_constant
+    ideal = (p.ideal_actuators != 0).unsqueeze(-1)
+    d_pos = torch.where(ideal, torch.zeros_like(d_pos), d_pos)
+    d_rate = torch.where(ideal, torch.zeros_like(d_rate), d_rate)
+    d_throttle = torch.where((p.ideal_throttle != 0).unsqueeze(-1), torch.zeros_like(d_throttle), d_throttle)
     return d_pos, d_rate, d_throttle
+
+
+def hold_ideal(position: torch.Tensor, rate: torch.Tensor, throttle: torch.Tensor, command: torch.Tensor,
+               p: ModelParams) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Actuator states at the start of a step: in ideal-actuator envs position [N, 3] = clamped
+    target and rate [N, 3] = 0, in ideal-throttle envs throttle [N, M] = commanded throttle; the
+    others unchanged. With the derivative zero there, the states stay on the command over the step."""
+    target, throttle_target = command_targets(command, p)
+    target = torch.minimum(torch.maximum(target, p.surface_min), p.surface_max)
+    ideal = (p.ideal_actuators != 0).unsqueeze(-1)
+    position = torch.where(ideal, target, position)
+    rate = torch.where(ideal, torch.zeros_like(rate), rate)
+    instant = (p.ideal_throttle != 0).unsqueeze(-1)
+    throttle = torch.where(instant, throttle_target.unsqueeze(-1).expand_as(throttle), throttle)
+    return position, rate, throttle
 
 
 def saturate(position: torch.Tensor, rate: torch.Tensor, throttle: torch.Tensor, p: ModelParams
@@ -76,11 +100,33 @@ def actuator_derivative_wp(x: StateVec, command: wp.vec4, p: WarpParams, i: int)
             d[SURFACE_RATE_START + j] = wn[j] * wn[j] * (target - position) - 2.0 * zeta[j] * wn[j] * rate
         else:
             d[SURFACE_POSITION_START + j] = (target - position) / tau[j]
+    if p.ideal_actuators[i] != 0:
+        for j in range(3):
+            d[SURFACE_POSITION_START + j] = 0.0
+            d[SURFACE_RATE_START + j] = 0.0
     throttle_target = 0.5 * (u[3] + 1.0)
-    for m in range(p.num_motors):
-        k = THROTTLE_START + m
-        d[k] = (throttle_target - x[k]) / p.throttle_time_constant[i, m]
+    if p.ideal_throttle[i] == 0:
+        for m in range(p.num_motors):
+            k = THROTTLE_START + m
+            d[k] = (throttle_target - x[k]) / p.throttle_time_constant[i, m]
     return d
+
+
+@warp_func
+def hold_ideal_wp(x: StateVec, command: wp.vec4, p: WarpParams, i: int) -> StateVec:
+    """Actuator states of env ``i`` at the start of a step (twin of :func:`hold_ideal`)."""
+    y = StateVec(x)
+    if p.ideal_actuators[i] != 0:
+        lo = p.surface_min[i]
+        hi = p.surface_max[i]
+        for j in range(3):
+            target = lo[j] + 0.5 * (wp.clamp(command[j], -1.0, 1.0) + 1.0) * (hi[j] - lo[j])
+            y[SURFACE_POSITION_START + j] = wp.min(wp.max(target, lo[j]), hi[j])
+            y[SURFACE_RATE_START + j] = 0.0
+    if p.ideal_throttle[i] != 0:
+        for m in range(p.num_motors):
+            y[THROTTLE_START + m] = 0.5 * (wp.clamp(command[3], -1.0, 1.0) + 1.0)
+    return y
 
 
 @warp_func

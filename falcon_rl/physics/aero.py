@@ -8,7 +8,9 @@ and the moments (about the CG) are body axes:
     F = qbar S [-C_D cos a + C_L sin a,  C_Y,  -C_D sin a - C_L cos a]
     M = qbar S [b C_l,  c C_m,  b C_n]
 
-Ground effect (see ``ground_effect.py``) scales C_L and the induced drag.
+Ground effect (see ``ground_effect.py``) scales C_L and the induced drag. The model switch
+``no_rate_damping`` (``switches.ModelSwitches(rate_damping=False)``) sets rate_hat = 0 per env, so the
+rate derivatives contribute nothing.
 """
 
 from __future__ import annotations
@@ -130,6 +132,7 @@ def aero_forces(
     half_over_v = 0.5 / v
     lengths = torch.stack([p.span, p.chord, p.span], dim=-1)  # [N, 3]
     rates_hat = omega_air * lengths * half_over_v[:, None]
+    rates_hat = torch.where((p.no_rate_damping != 0).unsqueeze(-1), torch.zeros_like(rates_hat), rates_hat)
     coeffs = aero_coefficients_oge(alpha, beta, surfaces, rates_hat, p)
     coeffs, cdi, kappa_l, kappa_d = apply_ground_effect(coeffs, h_over_b, p)
     qs = 0.5 * density * airspeed**2 * p.wing_area
@@ -204,6 +207,8 @@ def aero_forces_wp(airspeed: float, alpha: float, beta: float, omega_air: wp.vec
     chord = p.chord[i]
     half_over_v = 0.5 / wp.max(airspeed, MIN_AIRSPEED)
     rates_hat = wp.vec3(omega_air[0] * span, omega_air[1] * chord, omega_air[2] * span) * half_over_v
+    if p.no_rate_damping[i] != 0:
+        rates_hat = wp.vec3(0.0, 0.0, 0.0)
     c = aero_coefficients_oge_wp(alpha, beta, surfaces, rates_hat, p, i)
     cl_inf = c[0]
     cd_inf = c[1]

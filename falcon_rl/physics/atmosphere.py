@@ -1,6 +1,8 @@
 """ISA / US Standard Atmosphere 1976: troposphere (0-11 km) and the isothermal layer above.
 
-Geometric altitude is converted to geopotential altitude H = r0 z / (r0 + z) first.
+Geometric altitude is converted to geopotential altitude H = r0 z / (r0 + z) first. The model
+switch ``constant_density`` (``switches.ModelSwitches(atmosphere="constant")``) replaces the density
+by its sea-level value RHO_SEA_LEVEL = P0 / (R T0) at every height (:func:`model_density`).
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ H_TROPOPAUSE = 11_000.0  # m geopotential
 T_TROPOPAUSE = T0 + LAPSE * H_TROPOPAUSE  # 216.65 K
 P_TROPOPAUSE = P0 * (T_TROPOPAUSE / T0) ** (-G0 / (R_AIR * LAPSE))  # 22,632 Pa
 _PRESSURE_EXPONENT = -G0 / (R_AIR * LAPSE)
+RHO_SEA_LEVEL = P0 / (R_AIR * T0)  # 1.225 kg/m^3
 
 
 def isa(altitude_m: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
@@ -44,6 +47,13 @@ def isa_density(altitude_m: torch.Tensor) -> torch.Tensor:
     return isa(altitude_m)[2]
 
 
+def model_density(altitude_m: torch.Tensor, constant_density: torch.Tensor) -> torch.Tensor:
+    """[N] kg/m^3: ISA density at ``altitude_m`` [N], or RHO_SEA_LEVEL where the int32 switch
+    ``constant_density`` [N] is set."""
+    density = isa_density(altitude_m)
+    return torch.where(constant_density != 0, torch.full_like(density, RHO_SEA_LEVEL), density)
+
+
 @warp_func
 def isa_density_wp(altitude_m: float) -> float:
     """Density kg/m^3 at geometric altitude, m (twin of :func:`isa_density`)."""
@@ -57,3 +67,11 @@ def isa_density_wp(altitude_m: float) -> float:
     else:
         pressure = P_TROPOPAUSE * wp.exp(-G0 * (geopotential - H_TROPOPAUSE) / (R_AIR * T_TROPOPAUSE))
     return pressure / (R_AIR * temperature)
+
+
+@warp_func
+def model_density_wp(altitude_m: float, constant_density: int) -> float:
+    """Twin of :func:`model_density` for one env."""
+    if constant_density != 0:
+        return RHO_SEA_LEVEL
+    return isa_density_wp(altitude_m)

@@ -7,6 +7,9 @@
 
 The aero model sees the air-relative velocity V_a = v - R^T w_ned - w_gust and the rates
 omega - omega_gust, so wind and turbulence act on alpha, beta and dynamic pressure.
+
+Model switches (``switches.ModelSwitches``) act per env inside the components; ideal actuators
+and throttle also need :func:`hold_command` before each step (state set to the command).
 """
 
 from __future__ import annotations
@@ -17,9 +20,15 @@ import torch
 
 from . import state as S
 from ._warp import warp_func, warp_struct, wp
-from .actuators import actuator_derivative, actuator_derivative_wp, saturate, saturate_wp
+from .actuators import (
+    actuator_derivative,
+    actuator_derivative_wp,
+    hold_ideal,
+    saturate,
+    saturate_wp,
+)
 from .aero import aero_forces, aero_forces_wp
-from .atmosphere import isa_density, isa_density_wp
+from .atmosphere import model_density, model_density_wp
 from .derived import pack_derived
 from .params import ModelParams, Vec6, WarpParams
 from .propulsion import propulsion_forces, propulsion_forces_wp
@@ -94,7 +103,7 @@ def evaluate(x: torch.Tensor, p: ModelParams, air: AirInputs | None = None) -> E
     airspeed, alpha, beta = air_data(v_air)
     height = S.height(x)
     wing_height = height - (rot[:, 2, :] * p.wing_quarter_chord).sum(-1)
-    density = isa_density(height)
+    density = model_density(height, p.constant_density)
     surfaces = torch.minimum(torch.maximum(x[:, S.SURFACE_POSITION], p.surface_min), p.surface_max)
     aero = aero_forces(airspeed, alpha, beta, omega_air, surfaces, density,
                        wing_height / p.span, p)
@@ -146,6 +155,15 @@ def project(x: torch.Tensor, p: ModelParams) -> torch.Tensor:
                               x[:, S.THROTTLE_START:], p)
     return torch.cat([x[:, S.POSITION], normalize_quaternion(x[:, S.QUATERNION]),
                       x[:, S.VELOCITY], x[:, S.ANGULAR_RATE], pos, rate, thr], dim=-1)
+
+
+def hold_command(x: torch.Tensor, command: torch.Tensor, p: ModelParams) -> torch.Tensor:
+    """Before a step under ``command`` [N, 4]: put the actuator states of the ideal-actuator and
+    ideal-throttle envs on the command (``actuators.hold_ideal``, twin ``hold_ideal_wp``; a new
+    tensor [N, S])."""
+    pos, rate, thr = hold_ideal(x[:, S.SURFACE_POSITION], x[:, S.SURFACE_RATE], x[:, S.THROTTLE_START:],
+                                command, p)
+    return torch.cat([x[:, :S.SURFACE_POSITION_START], pos, rate, thr], dim=-1)
 
 
 def lowest_tip_height(ev: Evaluation, p: ModelParams) -> torch.Tensor:
@@ -214,7 +232,7 @@ def evaluate_wp(x: StateVec, wind_ned: wp.vec3, gust_velocity_body: wp.vec3, gus
     air = air_data_wp(v_air)
     height = -x[S.DOWN_INDEX]
     wing_height = height - wp.dot(wp.vec3(rot[2, 0], rot[2, 1], rot[2, 2]), p.wing_quarter_chord[i])
-    density = isa_density_wp(height)
+    density = model_density_wp(height, p.constant_density[i])
     lo = p.surface_min[i]
     hi = p.surface_max[i]
     surfaces = wp.vec3(wp.min(wp.max(x[SURFACE_POSITION_START], lo[0]), hi[0]),

@@ -18,7 +18,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import torch
@@ -26,6 +26,7 @@ import torch
 from ..airframe import Airframe
 from ..constants import G0
 from ._warp import warp_struct, wp
+from .switches import ModelSwitches
 
 #: Row dtypes: "float" is the build dtype (float32 for the warp backend).
 TORCH_DTYPES: dict[str, torch.dtype | None] = {
@@ -38,6 +39,7 @@ class BuildOptions:
 
     gravity: float = G0
     ground_effect: bool | str = True
+    switches: ModelSwitches = field(default_factory=ModelSwitches)
 
 
 #: The value of a source row for one env (any array-like of the row's shape without N).

@@ -12,7 +12,7 @@ the values). N = envs, T = aero monomials, M = motors.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
 import torch
@@ -34,6 +34,7 @@ from .parameter_table import (
     make_warp_struct,
     table_markdown,
 )
+from .switches import ModelSwitches
 
 #: Bits per exponent in a packed monomial code (:func:`pack_exponents`).
 EXPONENT_BITS = 3
@@ -67,6 +68,12 @@ def _surfaces(get: Callable[[Actuator], Any]) -> Source:
 
 def _geometry(attr: str) -> Source:
     return lambda af, _: getattr(af.geometry, attr)
+
+
+def _switch(row: str, doc: str) -> ParamRow:
+    """An int32 [N] model-switch row (``switches.ModelSwitches``): 0 full model, 1 simplified."""
+    return ParamRow(row, "[N]", lambda _, o: o.switches.flags()[row], dtype="int32", warp="int32",
+                    doc=f"model switch, 1: {doc} (build_params(switches=...))")
 
 
 PARAMETER_TABLE: tuple[ParamRow, ...] = (
@@ -125,6 +132,11 @@ PARAMETER_TABLE: tuple[ParamRow, ...] = (
              doc="lower deflection limit"),
     ParamRow("surface_max", "[N, 3]", _surfaces(lambda ac: ac.limits[1]), warp="vec3", unit="rad",
              doc="upper deflection limit"),
+    _switch("ideal_actuators", "surfaces at the clamped commanded deflection, no lag"),
+    _switch("ideal_throttle", "throttle state = commanded throttle"),
+    _switch("constant_density", "sea-level ISA density at every height"),
+    _switch("no_rate_damping", "no aero rate-derivative terms"),
+    _switch("no_propeller_torque", "no propeller reaction torque"),
     ParamRow("aero_exponents", "[T, 5]", lambda af, _: af.aero.exponents, dtype="int64", per_env=False,
              warp=None, doc="monomial exponents, columns alpha, beta, elevator, aileron, rudder"),
 )
@@ -167,10 +179,13 @@ def build_params(
     dtype: torch.dtype = torch.float32,
     ground_effect: bool | str = True,
     gravity: float = G0,
+    switches: ModelSwitches | Mapping[str, Any] | None = None,
 ) -> ModelParams:
-    """Tensors for ``num_envs`` copies of ``airframe`` (contiguous, independently writable)."""
-    values = build_values(PARAMETER_TABLE, airframe, table_sizes(airframe, num_envs),
-                          BuildOptions(gravity=gravity, ground_effect=ground_effect), device, dtype)
+    """Tensors for ``num_envs`` copies of ``airframe`` (contiguous, independently writable);
+    ``switches`` (None: the full model) fills the model-switch rows (see :mod:`.switches`)."""
+    options = BuildOptions(gravity=gravity, ground_effect=ground_effect,
+                           switches=ModelSwitches.from_spec(switches))
+    values = build_values(PARAMETER_TABLE, airframe, table_sizes(airframe, num_envs), options, device, dtype)
     return ModelParams(**values)
 
 

@@ -5,7 +5,8 @@
 
 V_ax is the air-relative velocity along the thrust axis. Zero throttle gives zero thrust, and the
 thrust is clamped at zero above the discharge speed (a windmilling propeller gives no thrust here).
-Each motor adds F = T a and M = r x F + Q a.
+Each motor adds F = T a and M = r x F + Q a; the model switch ``no_propeller_torque``
+(``switches.ModelSwitches(propeller_torque=False)``) drops Q per env.
 """
 
 from __future__ import annotations
@@ -35,6 +36,7 @@ def propulsion_forces(v_air_body: torch.Tensor, throttle: torch.Tensor, density:
     force_m = thrust.unsqueeze(-1) * p.motor_axis  # [N, M, 3]
     delta = throttle.clamp(0.0, 1.0)
     torque = -p.motor_spin * p.torque_coefficient * (p.torque_speed_constant * delta) ** 2
+    torque = torch.where((p.no_propeller_torque != 0).unsqueeze(-1), torch.zeros_like(torque), torque)
     moment_m = torch.linalg.cross(p.motor_position, force_m, dim=-1) + torque.unsqueeze(-1) * (
         p.motor_axis)
     return force_m.sum(dim=1), moment_m.sum(dim=1), thrust
@@ -76,6 +78,8 @@ def propulsion_forces_wp(v_air_body: wp.vec3, x: StateVec, density: float, p: Wa
         delta = wp.clamp(throttle, 0.0, 1.0)
         ks = p.torque_speed_constant[i, m] * delta
         torque = -p.motor_spin[i, m] * p.torque_coefficient[i, m] * ks * ks
+        if p.no_propeller_torque[i] != 0:
+            torque = 0.0
         out.force_body = out.force_body + force
         out.moment_body = out.moment_body + wp.cross(p.motor_position[i, m], force) + torque * axis
         out.thrust = out.thrust + thrust

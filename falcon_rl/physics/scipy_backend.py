@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from .dynamics import derivative, project
+from .dynamics import derivative, hold_command, project
 from .torch_backend import TorchEngine
 
 #: solve_ivp tolerances (relative and absolute).
@@ -38,8 +38,8 @@ class ScipyEngine(TorchEngine):
             xx = torch.from_numpy(y).reshape(1, -1)
             return derivative(xx, command, params, air).reshape(-1).numpy()
 
-        sol = solve_ivp(f, (0.0, self.dt), self.x[0].numpy(), method="RK45", rtol=TOLERANCE,
-                        atol=TOLERANCE)
+        x0 = hold_command(self.x, command, params)[0].numpy()
+        sol = solve_ivp(f, (0.0, self.dt), x0, method="RK45", rtol=TOLERANCE, atol=TOLERANCE)
         if not sol.success:
             raise RuntimeError(f"solve_ivp failed: {sol.message}")
         return project(torch.from_numpy(sol.y[:, -1]).reshape(1, -1), params)

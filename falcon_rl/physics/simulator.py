@@ -14,6 +14,7 @@ preallocated tensors updated in place; ``state`` returns clones.
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import Any
 
 import torch
 from tensordict import TensorDict
@@ -22,11 +23,12 @@ from ..airframe import Airframe, load_airframe
 from . import state as S
 from .backends import ENGINES, engine_class
 from .derived import split_derived
-from .dynamics import AirInputs, project
+from .dynamics import AirInputs, hold_command, project
 from .engine import Engine, EngineSetup
 from .integrators import INTEGRATORS
 from .params import ModelParams, build_params
 from .rotations import euler_to_quaternion
+from .switches import ModelSwitches, switch_flags
 from .trim import trim_level
 from .wind import Turbulence, TurbulenceConfig, turbulence_config
 
@@ -53,6 +55,10 @@ class Simulator:
         check_inputs: raise on malformed or non-finite commands (costs a host sync on CUDA).
         warp_cpu_threads: threads that step a warp-backend batch on the CPU (None: one per
             available core, at most one per 512 envs); ignored by the other backends and on CUDA.
+        model: which form of each phenomenon to simulate: None (the full model), a
+            :class:`~falcon_rl.physics.switches.ModelSwitches` or a mapping of its fields, e.g.
+            ``{"actuators": "ideal", "rate_damping": False}``; per env (rows of ``params``), change
+            a subset with :meth:`set_model`.
         compile: torch backend only: step through ``torch.compile`` of the integration step (one
             fused graph instead of ~1,000 small kernels per RK4 step; the first steps compile it,
             tens of seconds on a CPU).
@@ -74,6 +80,7 @@ class Simulator:
         check_inputs: bool = True,
         warp_cpu_threads: int | None = None,
         compile: bool = False,
+        model: ModelSwitches | Mapping[str, Any] | None = None,
     ):
         if isinstance(airframe, str):
             airframe = load_airframe(airframe)
@@ -98,7 +105,8 @@ class Simulator:
         self.dtype = dtype
         self.check_inputs = check_inputs
         self.layout = S.StateLayout(airframe.num_motors)
-        params = build_params(airframe, num_envs, device, dtype, ground_effect)
+        params = build_params(airframe, num_envs, device, dtype, ground_effect,
+                              switches=ModelSwitches.from_spec(model))
         self.engine: Engine = engine_cls(EngineSetup(
             airframe=airframe, params=params, num_envs=num_envs, device=device, dtype=dtype, dt=float(dt),
             integrator=integrator, turbulence=turbulence_config(turbulence), seed=seed,
@@ -181,6 +189,15 @@ class Simulator:
             raise ValueError(f"integrator must be one of {list(INTEGRATORS)}, got {value!r}")
         self.engine.integrator = value
 
+    def set_model(self, mask: torch.Tensor | None = None, **switches: Any) -> None:
+        """Set the named model switches (fields of ``ModelSwitches``, e.g. ``actuators="ideal"``) in
+        the envs where ``mask`` [N] bool is True (all when None); the others keep theirs. Takes
+        effect from the next step (the actuator states of newly ideal envs jump to the command then)."""
+        flags = switch_flags(switches, switches)
+        mask = torch.ones(self.num_envs, dtype=torch.bool, device=self.device) if mask is None else (
+            torch.as_tensor(mask, device=self.device).reshape(self.num_envs).bool())
+        self.params.assign(mask, **{name: torch.tensor(value) for name, value in flags.items()})
+
     # ------------------------------------------------------------------ state
     @property
     def air(self) -> AirInputs:
@@ -218,7 +235,7 @@ class Simulator:
                 raise ValueError("initial state contains NaN or Inf")
         elif initial is not None:
             new_x, new_cmd = self._compose_initial(initial, new_x, new_cmd)
-        new_x = project(new_x, self.params)
+        new_x = project(hold_command(new_x, new_cmd, self.params), self.params)
         if mask is not None:
             mask = torch.as_tensor(mask, device=self.device).reshape(n).bool()
         self.engine.reset(new_x, new_cmd, mask)

@@ -2,7 +2,8 @@
 
 One step: the Dryden filters advance once at the current height and airspeed (when turbulence is
 on), then ``integrators.INTEGRATORS[integrator]`` integrates ``dynamics.derivative`` over dt with the
-command held, and ``dynamics.project`` renormalises the quaternion and saturates the actuators.
+command held (ideal actuators put on it first, ``dynamics.hold_command``), and
+``dynamics.project`` renormalises the quaternion and saturates the actuators.
 With ``options={"compile": True}`` the integration step runs through ``torch.compile`` (one fused
 graph instead of ~1,000 small kernels per RK4 step; the first steps compile it).
 """
@@ -16,7 +17,7 @@ import torch
 from . import state as S
 from .aero import monomial_plan
 from .derived import DERIVED_WIDTH
-from .dynamics import AirInputs, derivative, derived_columns, project
+from .dynamics import AirInputs, derivative, derived_columns, hold_command, project
 from .engine import Engine, EngineSetup
 from .integrators import INTEGRATORS
 from .params import ModelParams
@@ -31,7 +32,7 @@ def integrate(x: torch.Tensor, command: torch.Tensor, params: ModelParams, air: 
     def f(xx: torch.Tensor) -> torch.Tensor:
         return derivative(xx, command, params, air)
 
-    return project(INTEGRATORS[integrator](f, x, dt), params)
+    return project(INTEGRATORS[integrator](f, hold_command(x, command, params), dt), params)
 
 
 class TorchEngine(Engine):

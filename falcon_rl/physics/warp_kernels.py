@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import warp as wp
 
+from .actuators import hold_ideal_wp
 from .derived import DERIVED_OFFSET
 from .dynamics import derivative_wp, evaluate_wp, project_wp
 from .params import WarpParams
@@ -125,7 +126,7 @@ def step_kernel(
     substeps: int,
     offset: int,
 ):
-    """``substeps`` times: x[i] <- project(integrate(x[i], dt)) and time[i] += dt, for env
+    """``substeps`` times: x[i] <- project(integrate(hold_ideal(x[i]), dt)) and time[i] += dt, for env
     i = offset + tid, command held over the sub-steps.
 
     x: [N, S] state (in place). time: [N] s (in place). command: [N] normalised commands.
@@ -150,6 +151,7 @@ def step_kernel(
                                dt)
         gv = gust_velocity_body[i]
         gw = gust_rate_body[i]
+        s = hold_ideal_wp(s, u, p, i)
         k1 = derivative_wp(s, u, wind, gv, gw, p, i)
         y = StateVec()
         if integrator == 0:
