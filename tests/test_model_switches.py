@@ -76,12 +76,11 @@ def _states(sim: Simulator, gen: torch.Generator) -> tuple[torch.Tensor, torch.T
 
 
 # --------------------------------------------------------------------------------------- the spec
-def test_defaults_are_the_full_model_and_not_randomisable():
+def test_defaults_are_the_full_model_and_randomisable():
     p = build_params(Simulator("navion").airframe, 3)
     for row in FLAG_ROWS:
         assert torch.equal(getattr(p, row), torch.zeros(3, dtype=torch.int32)), row
-        with pytest.raises(ValueError, match="not randomisable"):
-            check_randomizable([row])
+        check_randomizable([row])  # domain randomisation may draw them per episode
     assert ModelSwitches.from_spec(None) == ModelSwitches()
     assert set(ModelSwitches(actuators="ideal", throttle_lag=False, atmosphere="constant", rate_damping=False,
                              propeller_torque=False).flags().values()) == {1}
@@ -235,3 +234,28 @@ def test_make_env_passes_the_model_through():
     assert params.ideal_throttle.tolist() == [0, 0]
     assert SWITCH_NAMES == ("actuators", "throttle_lag", "atmosphere", "rate_damping", "propeller_torque")
     assert math.isclose(RHO_SEA_LEVEL, 1.225, rel_tol=1e-3)
+
+
+def test_domain_randomisation_draws_model_switches_per_episode():
+    """RandomizationConfig(model_switches={"actuators": 0.5}) mixes ideal and dynamic actuators in one
+    batch, redraws only the reset rows, and a probability outside [0, 1] or an unknown switch is a
+    one-line error."""
+    from falcon_rl.transforms import RandomizationConfig
+
+    config = RandomizationConfig(model_switches={"actuators": 0.5, "throttle_lag": 1.0})
+    env = make_env("altitude", "volantex_ranger", num_envs=64, backend="warp", seed=3, randomize=config)
+    td = env.rand_step(env.reset())
+    assert torch.isfinite(td["next", "observation"]).all()
+    flags = env.base_env.physical_parameters(["ideal_actuators", "ideal_throttle"])
+    assert 10 < int(flags["ideal_actuators"].sum()) < 54
+    assert bool((flags["ideal_throttle"] == 1).all())
+    mask = torch.zeros(64, dtype=torch.bool)
+    mask[:8] = True
+    before = flags["ideal_actuators"].clone()
+    env.reset(td["next"].clone().set("_reset", mask.unsqueeze(-1)))
+    after = env.base_env.physical_parameters(["ideal_actuators"])["ideal_actuators"]
+    assert torch.equal(after[8:], before[8:])
+    with pytest.raises(ValueError, match="probability"):
+        RandomizationConfig(model_switches={"actuators": 1.5})
+    with pytest.raises(ValueError, match="unknown switch"):
+        RandomizationConfig(model_switches={"flaps": 0.5})

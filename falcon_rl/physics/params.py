@@ -73,7 +73,7 @@ def _geometry(attr: str) -> Source:
 def _switch(row: str, doc: str) -> ParamRow:
     """An int32 [N] model-switch row (``switches.ModelSwitches``): 0 full model, 1 simplified."""
     return ParamRow(row, "[N]", lambda _, o: o.switches.flags()[row], dtype="int32", warp="int32",
-                    doc=f"model switch, 1: {doc} (build_params(switches=...))")
+                    randomizable=True, doc=f"model switch, 1: {doc} (build_params(switches=...))")
 
 
 PARAMETER_TABLE: tuple[ParamRow, ...] = (

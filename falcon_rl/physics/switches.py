@@ -90,6 +90,8 @@ class ModelSwitches:
 
 #: Names of the switches (the fields of :class:`ModelSwitches`).
 SWITCH_NAMES: tuple[str, ...] = tuple(f.name for f in fields(ModelSwitches))
+#: Switch name -> its parameter row.
+SWITCH_ROWS: dict[str, str] = dict(zip(SWITCH_NAMES, ModelSwitches().flags(), strict=True))
 
 
 def check_switch_names(names: Mapping[str, Any]) -> None:
@@ -105,5 +107,4 @@ def switch_flags(spec: ModelSwitches | Mapping[str, Any] | None, names: Mapping[
     flags = ModelSwitches.from_spec(spec).flags()
     if names is None:
         return flags
-    rows = dict(zip(SWITCH_NAMES, flags, strict=True))
-    return {rows[name]: flags[rows[name]] for name in names}
+    return {SWITCH_ROWS[name]: flags[SWITCH_ROWS[name]] for name in names}

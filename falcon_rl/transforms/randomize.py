@@ -15,6 +15,9 @@ the env's ``nominal_physical_parameters`` unless stated:
                                                  and throttle time constants
     wind                           |w| ~ U(lo, hi) m/s, horizontal, direction U(0, 2 pi)
     turbulence W20                 U(lo, hi) m/s  (needs turbulence on in the env)
+    model switches                 each switch (``physics.switches.ModelSwitches`` field) in its
+                                   simplified form with probability p, else the full model (for
+                                   mixed-model training or ablation batches)
 
 A range of None leaves that parameter nominal. The specs are unchanged.
 """
@@ -28,6 +31,7 @@ import torch
 from tensordict import TensorDictBase
 from torchrl.envs import Transform
 
+from ..physics.switches import SWITCH_NAMES, SWITCH_ROWS
 from ._buffers import reset_mask
 from ._env import flight_env
 
@@ -46,6 +50,16 @@ class RandomizationConfig:
     actuator_bandwidth_scale: Range = (0.8, 1.2)
     wind_speed: Range = None
     turbulence_w20: Range = None
+    #: {switch: p}: each ``ModelSwitches`` field in its simplified form with probability p per episode
+    #: (e.g. {"actuators": 0.5}); None or a missing switch: the env's own setting.
+    model_switches: dict[str, float] | None = None
+
+    def __post_init__(self) -> None:
+        for name, p in (self.model_switches or {}).items():
+            if name not in SWITCH_NAMES:
+                raise ValueError(f"model_switches: unknown switch {name!r}; switches: {list(SWITCH_NAMES)}")
+            if not 0.0 <= float(p) <= 1.0:
+                raise ValueError(f"model_switches[{name!r}] must be a probability in [0, 1], got {p}")
 
 
 #: Model parameters drawn at each reset (all written, nominal where the range is None).
@@ -117,6 +131,10 @@ class DomainRandomization(Transform):
                                               0.0 * speed], -1)
         if cfg.turbulence_w20 is not None:
             values["turbulence_w20"] = self._uniform(cfg.turbulence_w20, n, like)
+        for name, p in (cfg.model_switches or {}).items():
+            simplified = self._uniform((0.0, 1.0), n, like) < float(p)
+            row = SWITCH_ROWS[name]
+            values[row] = simplified.to(torch.int32)
         env.set_physical_parameters(mask, **values)
         return tensordict
 
