@@ -139,3 +139,26 @@ def test_decimation_runs_physics_steps_per_env_step() -> None:
     env = make_env("altitude", "navion", num_envs=2, decimation=4)
     td = env.rand_step(env.reset())
     assert torch.allclose(td["next", "state", "time"], torch.full((2,), 0.04))
+
+
+@pytest.mark.parametrize("backend", ["torch", "warp"])
+def test_a_diverged_env_is_terminated_with_finite_outputs(backend):
+    """An env whose state leaves the finite numbers is terminated; every output of its row is finite
+    (zeroed), the other envs are untouched, and a reset of the row flies on."""
+    env = make_env("altitude", "volantex_ranger", num_envs=3, backend=backend, seed=0)
+    td = env.reset()
+    td["action"] = env.action_spec.zero()
+    reference = make_env("altitude", "volantex_ranger", num_envs=3, backend=backend, seed=0)
+    ref_td = reference.reset()
+    ref_td["action"] = reference.action_spec.zero()
+    env.sim.x[1, 7] = float("nan")
+    out = env.step(td)["next"]
+    ref = reference.step(ref_td)["next"]
+    assert out["terminated"][:, 0].tolist() == [False, True, False]
+    for key in out.keys(True, True):
+        value = out[key]
+        if value.is_floating_point():
+            assert torch.isfinite(value).all(), key
+            assert torch.equal(value[[0, 2]], ref[key][[0, 2]]), key
+    reset = env.reset(out.clone().set("_reset", out["done"]))
+    assert torch.isfinite(env.sim.x).all() and torch.isfinite(reset["observation"]).all()

@@ -11,7 +11,8 @@ Keys (batch [N]):
                              privileged critics; sensors and delays act on "observation" only
     ("task", name)           the task's references and tracking errors ([N] or [N, k])
     reward                   [N, 1]
-    done, terminated, truncated  [N, 1] bool (terminated: crash or stall; truncated: horizon)
+    done, terminated, truncated  [N, 1] bool (terminated: crash, stall or a state that is no longer
+                             finite, whose outputs are then zeroed; truncated: horizon)
 
 The env only uses the Simulator facade (reset / step / state), so it runs on any backend and device
 the Simulator supports. One env step is ``decimation`` physics steps of ``dt`` under the same
@@ -214,8 +215,24 @@ class FixedWingEnv(EnvBase):
         observation, reward, terminated = self.task.step(state, action)
         self.step_count += 1
         truncated = self.step_count >= self.max_episode_steps
-        return self._output(observation, state, terminated.unsqueeze(-1), truncated.unsqueeze(-1),
-                            reward=reward.unsqueeze(-1))
+        diverged = ~torch.isfinite(self.sim.x).all(-1)  # [N]: the physics left the finite numbers
+        out = self._output(observation, state, (terminated | diverged).unsqueeze(-1), truncated.unsqueeze(-1),
+                           reward=reward.unsqueeze(-1))
+        if bool(diverged.any()):
+            out = self._zero_non_finite(out, diverged)
+        return out
+
+    @staticmethod
+    def _zero_non_finite(out: TensorDictBase, rows: torch.Tensor) -> TensorDictBase:
+        """Replace every non-finite number of the ``rows`` [N] bool by 0 (those envs are terminated):
+        no NaN or Inf leaves the env, and the other envs are untouched."""
+        def clean(value: torch.Tensor) -> torch.Tensor:
+            if not value.is_floating_point():
+                return value
+            mask = rows.reshape(-1, *([1] * (value.dim() - 1))) & ~torch.isfinite(value)
+            return value.masked_fill(mask, 0.0)
+
+        return out.apply(clean)
 
     def _output(self, observation: torch.Tensor, state: TensorDictBase, terminated: torch.Tensor,
                 truncated: torch.Tensor, reward: torch.Tensor | None) -> TensorDictBase:
