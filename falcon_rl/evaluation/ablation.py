@@ -89,7 +89,8 @@ def run_ablation(task: str, airframe: str, controller: str,
 
 
 def ablation_markdown(results: list[AblationResult]) -> str:
-    """One table per task: rows = arms, columns = controllers (headline value and change)."""
+    """One table per task: rows = arms, columns = controllers (headline value and change; "-" where
+    no episode survived to be scored)."""
     lines: list[str] = []
     for task in dict.fromkeys(r.task for r in results):
         rows = [r for r in results if r.task == task]
@@ -101,6 +102,9 @@ def ablation_markdown(results: list[AblationResult]) -> str:
         for arm in first.values:
             cells = []
             for r in rows:
+                if not math.isfinite(r.values[arm]):  # no episode survived to be scored
+                    cells.append(f"- | - | {r.survival[arm]:.2f}")
+                    continue
                 change = "" if arm == FULL else f"{r.change(arm):+.3f}"
                 cells.append(f"{r.values[arm]:.3f} | {change} | {r.survival[arm]:.2f}")
             lines.append(f"| {arm} | " + " | ".join(cells) + " |")

@@ -3,6 +3,7 @@ phenomenon, one panel per task, one bar group per arm, one bar per controller (P
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import matplotlib
@@ -25,8 +26,12 @@ def plot_ablation(results: list[AblationResult], path: Path) -> Path:
         y = np.arange(len(arms))
         for k, r in enumerate(rows):
             changes = [r.change(arm) for arm in arms]
-            ax.barh(y + (k - (len(rows) - 1) / 2) * width, changes, height=width,
+            offsets = y + (k - (len(rows) - 1) / 2) * width
+            ax.barh(offsets, changes, height=width,
                     label=f"{r.controller} (full {r.values[FULL]:.3g} {r.unit})")
+            for offset, change in zip(offsets, changes, strict=True):
+                if not math.isfinite(change):  # no episode survived to be scored
+                    ax.text(0.0, offset, f" {r.controller}: every episode lost", va="center", fontsize=7)
         ax.set_yticks(y, arms)
         ax.invert_yaxis()
         ax.axvline(0.0, color="black", lw=0.8)
