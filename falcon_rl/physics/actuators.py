@@ -49,9 +49,9 @@ def actuator_derivative(
                          torch.zeros_like(rate))
     d_throttle = (throttle_target.unsqueeze(-1) - throttle) / p.throttle_time_constant
     ideal = (p.ideal_actuators != 0).unsqueeze(-1)
-    d_pos = torch.where(ideal, torch.zeros_like(d_pos), d_pos)
-    d_rate = torch.where(ideal, torch.zeros_like(d_rate), d_rate)
-    d_throttle = torch.where((p.ideal_throttle != 0).unsqueeze(-1), torch.zeros_like(d_throttle), d_throttle)
+    d_pos = d_pos.masked_fill(ideal, 0.0)
+    d_rate = d_rate.masked_fill(ideal, 0.0)
+    d_throttle = d_throttle.masked_fill((p.ideal_throttle != 0).unsqueeze(-1), 0.0)
     return d_pos, d_rate, d_throttle
 
 
@@ -64,7 +64,7 @@ def hold_ideal(position: torch.Tensor, rate: torch.Tensor, throttle: torch.Tenso
     target = torch.minimum(torch.maximum(target, p.surface_min), p.surface_max)
     ideal = (p.ideal_actuators != 0).unsqueeze(-1)
     position = torch.where(ideal, target, position)
-    rate = torch.where(ideal, torch.zeros_like(rate), rate)
+    rate = rate.masked_fill(ideal, 0.0)
     instant = (p.ideal_throttle != 0).unsqueeze(-1)
     throttle = torch.where(instant, throttle_target.unsqueeze(-1).expand_as(throttle), throttle)
     return position, rate, throttle
@@ -74,7 +74,7 @@ def saturate(position: torch.Tensor, rate: torch.Tensor, throttle: torch.Tensor,
              ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """Clamp integrated actuator states to their limits; zero the rate where clamped."""
     clamped = torch.minimum(torch.maximum(position, p.surface_min), p.surface_max)
-    rate = torch.where(clamped != position, torch.zeros_like(rate), rate)
+    rate = rate.masked_fill(clamped != position, 0.0)
     return clamped, rate, throttle.clamp(0.0, 1.0)
 
 

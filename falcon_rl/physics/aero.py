@@ -132,7 +132,7 @@ def aero_forces(
     half_over_v = 0.5 / v
     lengths = torch.stack([p.span, p.chord, p.span], dim=-1)  # [N, 3]
     rates_hat = omega_air * lengths * half_over_v[:, None]
-    rates_hat = torch.where((p.no_rate_damping != 0).unsqueeze(-1), torch.zeros_like(rates_hat), rates_hat)
+    rates_hat = rates_hat.masked_fill((p.no_rate_damping != 0).unsqueeze(-1), 0.0)
     coeffs = aero_coefficients_oge(alpha, beta, surfaces, rates_hat, p)
     coeffs, cdi, kappa_l, kappa_d = apply_ground_effect(coeffs, h_over_b, p)
     qs = 0.5 * density * airspeed**2 * p.wing_area

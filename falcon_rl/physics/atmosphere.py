@@ -51,7 +51,7 @@ def model_density(altitude_m: torch.Tensor, constant_density: torch.Tensor) -> t
     """[N] kg/m^3: ISA density at ``altitude_m`` [N], or RHO_SEA_LEVEL where the int32 switch
     ``constant_density`` [N] is set."""
     density = isa_density(altitude_m)
-    return torch.where(constant_density != 0, torch.full_like(density, RHO_SEA_LEVEL), density)
+    return torch.where(constant_density != 0, RHO_SEA_LEVEL, density)
 
 
 @warp_func

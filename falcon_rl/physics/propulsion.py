@@ -36,7 +36,7 @@ def propulsion_forces(v_air_body: torch.Tensor, throttle: torch.Tensor, density:
     force_m = thrust.unsqueeze(-1) * p.motor_axis  # [N, M, 3]
     delta = throttle.clamp(0.0, 1.0)
     torque = -p.motor_spin * p.torque_coefficient * (p.torque_speed_constant * delta) ** 2
-    torque = torch.where((p.no_propeller_torque != 0).unsqueeze(-1), torch.zeros_like(torque), torque)
+    torque = torque.masked_fill((p.no_propeller_torque != 0).unsqueeze(-1), 0.0)
     moment_m = torch.linalg.cross(p.motor_position, force_m, dim=-1) + torque.unsqueeze(-1) * (
         p.motor_axis)
     return force_m.sum(dim=1), moment_m.sum(dim=1), thrust
