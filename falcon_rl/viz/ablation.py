@@ -13,6 +13,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from ..evaluation.ablation import FULL, AblationResult
+from ._figure import save_figure
 
 
 def plot_ablation(results: list[AblationResult], path: Path) -> Path:
@@ -40,8 +41,4 @@ def plot_ablation(results: list[AblationResult], path: Path) -> Path:
         ax.grid(alpha=0.3, axis="x")
         ax.legend(fontsize=8)
     fig.suptitle("ablation: one phenomenon simplified at a time")
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)

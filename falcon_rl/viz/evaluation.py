@@ -12,6 +12,7 @@ import matplotlib.pyplot as plt
 import torch
 
 from ..evaluation.protocols import ProtocolResult
+from ._figure import save_figure
 
 
 def plot_altitude(result: ProtocolResult, path: Path, shown: int = 10) -> Path:
@@ -47,11 +48,7 @@ def plot_altitude(result: ProtocolResult, path: Path, shown: int = 10) -> Path:
     s = result.summary
     fig.suptitle(f"{result.controller} on {result.airframe}: survival {s['survival']:.2f}, "
                  f"acquisition {s['acquisition']:.2f}, RMSE {s['rmse_m']:.3g} m")
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)
 
 
 def plot_attitude(result: ProtocolResult, path: Path) -> Path:
@@ -81,8 +78,4 @@ def plot_bank_facets(results: list[ProtocolResult], path: Path) -> Path:
                 ax.set_ylabel("bank (deg)")
     for ax in axes[-1]:
         ax.set_xlabel("time (s)")
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=100)

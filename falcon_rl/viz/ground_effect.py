@@ -11,6 +11,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
 from ..evaluation.ground_effect_table import GroundEffectRow
+from ._figure import save_figure
 
 
 def plot_ground_effect(tables: dict[str, list[GroundEffectRow]], path: str | Path) -> Path:
@@ -32,9 +33,4 @@ def plot_ground_effect(tables: dict[str, list[GroundEffectRow]], path: str | Pat
     ax.set_title("Ground effect: thrust demand in level flight at cruise speed")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=100)

@@ -15,6 +15,7 @@ import torch
 
 from ..evaluation.metrics import first_episode_mask
 from ..evaluation.protocols import ProtocolResult
+from ._figure import save_figure
 
 
 def _scored(values: torch.Tensor, done: torch.Tensor) -> torch.Tensor:
@@ -27,11 +28,7 @@ def _save(fig: plt.Figure, path: Path, title: str) -> Path:
     for ax in fig.axes:
         ax.grid(alpha=0.3)
     fig.suptitle(title)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)
 
 
 def _summary_line(result: ProtocolResult, *keys: str) -> str:
