@@ -140,7 +140,9 @@ class DomainRandomization(Transform):
 
     def sampled(self) -> dict[str, torch.Tensor]:
         """Current per-env values {name: [N, ...]} of what this transform draws (copies): the model
-        fields, wind_ned and, with turbulence on, turbulence_w20."""
+        fields, wind_ned, and turbulence_w20 and the model-switch rows when it draws them."""
         env = flight_env(self, "physical_parameters")
-        atmosphere = [name for name in ("wind_ned", "turbulence_w20") if name in env.physical_parameters()]
-        return env.physical_parameters((*_FIELDS, *atmosphere))
+        cfg = self.config
+        names = (*_FIELDS, "wind_ned", *(("turbulence_w20",) if cfg.turbulence_w20 is not None else ()),
+                 *(SWITCH_ROWS[name] for name in cfg.model_switches or {}))
+        return env.physical_parameters(names)
