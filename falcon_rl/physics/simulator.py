@@ -34,6 +34,13 @@ from .wind import Turbulence, TurbulenceConfig, turbulence_config
 
 BACKENDS = tuple(ENGINES)
 DEFAULT_HEIGHT = 100.0
+#: Physical ranges a reset state must lie in (the model is subsonic, rigid and above the ground):
+#: speed relative to the ground, m/s; body rates, rad/s; |position| components, m.
+MAX_RESET_SPEED = 300.0
+MAX_RESET_RATE = 20.0
+MAX_RESET_POSITION = 1.0e7
+#: A quaternion shorter than this cannot be normalised into an attitude (it is refused at reset).
+MIN_QUATERNION_NORM = 1.0e-3
 
 
 class Simulator:
@@ -52,6 +59,10 @@ class Simulator:
             or a :class:`~falcon_rl.physics.wind.TurbulenceConfig`; the Dryden state is ``turbulence``
             (per-env W20 in ``turbulence.w20``), the gusts are published in ``state``.
         seed: seed of this simulator's generator (and of the Warp turbulence streams).
+        stop_at_ground: crash state: an env whose centre of gravity goes below the ground stops
+            there (height 0, zero velocity and body rates) and stays stopped, flagged in
+            ``crashed`` / ``state["crashed"]``, until its next reset; nothing flies underground.
+            Off (False) lets the state integrate through the ground (e.g. for a planner's model).
         check_inputs: raise on malformed or non-finite commands (costs a host sync on CUDA).
         warp_cpu_threads: threads that step a warp-backend batch on the CPU (None: one per
             available core, at most one per 512 envs); ignored by the other backends and on CUDA.
@@ -81,6 +92,7 @@ class Simulator:
         warp_cpu_threads: int | None = None,
         compile: bool = False,
         model: ModelSwitches | Mapping[str, Any] | None = None,
+        stop_at_ground: bool = True,
     ):
         if isinstance(airframe, str):
             airframe = load_airframe(airframe)
@@ -113,6 +125,9 @@ class Simulator:
             options={k: v for k, v in options.items() if k in engine_cls.OPTIONS}))
         if wind is not None:
             self.wind_ned[:] = torch.as_tensor(wind, dtype=dtype, device=device)
+        self.stop_at_ground = bool(stop_at_ground)
+        #: [N] bool: envs stopped at the ground since their last reset (see ``stop_at_ground``).
+        self.crashed = torch.zeros(num_envs, dtype=torch.bool, device=device)
         self._default: torch.Tensor | None = None
         self._default_command: torch.Tensor | None = None
         self.reset()
@@ -229,17 +244,53 @@ class Simulator:
         base, base_cmd = self.default_initial()
         new_x = base.expand(n, -1).clone()
         new_cmd = base_cmd.expand(n, -1).clone()
+        if mask is not None:
+            mask = torch.as_tensor(mask, device=self.device)
+            if mask.numel() != n:
+                raise ValueError(f"reset mask must have {n} entries, got shape {list(mask.shape)}")
+            mask = mask.reshape(n).bool()
         if isinstance(initial, torch.Tensor):
+            if initial.shape not in ((n, self.layout.size), (self.layout.size,)):
+                raise ValueError(f"initial state must have shape [{n}, {self.layout.size}] or "
+                                 f"[{self.layout.size}], got {list(initial.shape)}")
             new_x[:] = initial.to(self.device, self.dtype)
-            if not torch.isfinite(new_x).all():
-                raise ValueError("initial state contains NaN or Inf")
         elif initial is not None:
             new_x, new_cmd = self._compose_initial(initial, new_x, new_cmd)
+        self._check_initial(new_x, new_cmd, mask)
         new_x = project(hold_command(new_x, new_cmd, self.params), self.params)
-        if mask is not None:
-            mask = torch.as_tensor(mask, device=self.device).reshape(n).bool()
         self.engine.reset(new_x, new_cmd, mask)
+        if mask is None:
+            self.crashed.zero_()
+        else:
+            self.crashed.masked_fill_(mask, False)
         return self.state
+
+    def _check_initial(self, x: torch.Tensor, command: torch.Tensor, mask: torch.Tensor | None) -> None:
+        """ValueError (one line) unless the reset rows of ``x`` [N, S] and ``command`` [N, 4] are
+        finite, have a quaternion that normalises into an attitude, lie in the physical ranges
+        (``MAX_RESET_*``, height >= 0) and command within [-1, 1]. Rows outside ``mask`` are not read."""
+        rows = torch.arange(self.num_envs, device=self.device) if mask is None else mask.nonzero().flatten()
+        x, command = x[rows], command[rows]
+        speed = torch.linalg.vector_norm(x[:, S.VELOCITY], dim=-1)
+        checks = (
+            ("state contains NaN or Inf", ~torch.isfinite(x).all(-1)),
+            ("command contains NaN or Inf", ~torch.isfinite(command).all(-1)),
+            ("command outside [-1, 1]", (command.abs() > 1.0).any(-1)),
+            (f"quaternion has norm below {MIN_QUATERNION_NORM} (no attitude)",
+             torch.linalg.vector_norm(x[:, S.QUATERNION], dim=-1) < MIN_QUATERNION_NORM),
+            (f"position beyond {MAX_RESET_POSITION:g} m",
+             (x[:, S.POSITION].abs() > MAX_RESET_POSITION).any(-1)),
+            ("height below the ground (< 0 m)", S.height(x) < 0.0),
+            (f"speed above {MAX_RESET_SPEED:g} m/s", speed > MAX_RESET_SPEED),
+            (f"body rate above {MAX_RESET_RATE:g} rad/s",
+             (x[:, S.ANGULAR_RATE].abs() > MAX_RESET_RATE).any(-1)),
+        )
+        if not bool(torch.stack([bad for _, bad in checks]).any()):  # one host sync when all is well
+            return
+        for what, bad in checks:
+            if bool(bad.any()):
+                envs = rows[bad].tolist()
+                raise ValueError(f"initial {what} for envs {envs[:10]}{' ...' if len(envs) > 10 else ''}")
 
     def _compose_initial(self, initial: Mapping[str, torch.Tensor], x: torch.Tensor,
                          cmd: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
@@ -273,8 +324,6 @@ class Simulator:
             x[:, self.layout.throttle] = self._throttle_rows(val("throttle"))
         if "command" in initial:
             cmd[:] = val("command")
-        if not torch.isfinite(x).all():
-            raise ValueError("initial state contains NaN or Inf")
         return x, cmd
 
     def _throttle_rows(self, throttle: torch.Tensor) -> torch.Tensor:
@@ -309,7 +358,27 @@ class Simulator:
                 raise ValueError(f"commands contain NaN or Inf for envs {bad[:10]}")
             if not (isinstance(substeps, int) and substeps >= 1):
                 raise ValueError(f"substeps must be an int >= 1, got {substeps!r}")
-        self.engine.step(commands, substeps)
+        if self.stop_at_ground:
+            before = self.engine.x.clone()
+            self.engine.step(commands, substeps)
+            self._stop_at_ground(before)
+        else:
+            self.engine.step(commands, substeps)
+
+    def _stop_at_ground(self, before: torch.Tensor) -> None:
+        """Crash state: envs already crashed keep ``before`` [N, S] (they stay where they stopped);
+        envs whose CG went below the ground this step stop on it (height 0, zero velocity and body
+        rates, attitude and actuators as integrated) and are flagged in ``crashed``. No host sync."""
+        x = self.engine.x
+        below = S.height(x) < 0.0
+        stopped = x.clone()
+        stopped[:, S.DOWN_INDEX] = 0.0
+        stopped[:, S.VELOCITY] = 0.0
+        stopped[:, S.ANGULAR_RATE] = 0.0
+        result = torch.where(below[:, None], stopped, x)
+        result = torch.where(self.crashed[:, None], before, result)
+        x.copy_(result)
+        self.crashed |= below
 
     def reseed(self, seed: int) -> None:
         """Reseed the generator and the turbulence noise streams."""
@@ -333,6 +402,7 @@ class Simulator:
                 "time": self.time.clone(),
                 "gust_velocity_body": self.gust_velocity_body.clone(),
                 "gust_rate_body": self.gust_rate_body.clone(),
+                "crashed": self.crashed.clone(),
                 **split_derived(self.engine.derived()),
             },
             batch_size=[self.num_envs],
