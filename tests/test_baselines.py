@@ -61,7 +61,7 @@ def test_gain_schedules_stabilise_every_trim_point(name, request):
 
 
 def test_altitude_lqr_climbs_to_the_reference(ranger):
-    env = make_env("altitude", "volantex_ranger", num_envs=4, seed=3, episode_seconds=12.0, backend="warp")
+    env = make_env("altitude", "volantex_ranger", num_envs=4, seed=3, episode_seconds=12.0, backend="warp", decimation=1)
     policy = AltitudeLQR(ranger, dt=env.env_dt)
     with torch.no_grad():
         rollout = env.rollout(1200, policy, break_when_any_done=False)
@@ -74,7 +74,7 @@ def test_altitude_lqr_climbs_to_the_reference(ranger):
 
 
 def test_mppi_plans_inside_the_action_spec():
-    env = make_env("altitude", "volantex_ranger", num_envs=2, seed=0, episode_seconds=1.0)
+    env = make_env("altitude", "volantex_ranger", num_envs=2, seed=0, episode_seconds=1.0, decimation=1)
     policy = MPPI(env, MPPIConfig(samples=8, horizon_seconds=0.5, plan_dt=0.05, replan_seconds=0.05))
     with torch.no_grad():
         rollout = env.rollout(20, policy, break_when_any_done=False)
@@ -90,10 +90,10 @@ def test_mppi_plans_inside_the_action_spec():
 
 
 def test_mppi_reads_the_maneuver_stream_ahead():
-    env = make_env("attitude", "volantex_ranger", num_envs=2, seed=0, maneuver="s_turn")
+    env = make_env("attitude", "volantex_ranger", num_envs=2, seed=0, maneuver="s_turn", decimation=1)
     policy = MPPI(env, MPPIConfig(samples=4, horizon_seconds=1.0, plan_dt=0.1))
     td = env.reset()
-    td["state", "time"] = torch.full_like(td["state", "time"], 3.0)  # 3 s into the stream
+    td["state", "time"] = torch.full_like(td["state", "time"], 3.0)  # [N, 1]  # 3 s into the stream
     ref = policy._references(td)
     table = env.task.table
     assert ref["bank"].shape == (policy.horizon, 2 * 4)
@@ -105,7 +105,7 @@ def test_mppi_reads_the_maneuver_stream_ahead():
 
 
 def test_mppi_altitude_reference_ramps_to_the_target():
-    env = make_env("altitude", "volantex_ranger", num_envs=3, seed=1)
+    env = make_env("altitude", "volantex_ranger", num_envs=3, seed=1, decimation=1)
     policy = MPPI(env, MPPIConfig(samples=2, horizon_seconds=8.0, plan_dt=0.1))
     td = env.reset()
     ref = policy._references(td)
@@ -121,7 +121,7 @@ def test_mppi_climbs_towards_the_target():
     """Closed loop on the Ranger with a small planner: within 3 s every episode has moved towards
     its commanded altitude at a good fraction of the reference climb rate, and nothing crashed."""
     torch.manual_seed(0)
-    env = make_env("altitude", "volantex_ranger", num_envs=2, seed=2, backend="warp")
+    env = make_env("altitude", "volantex_ranger", num_envs=2, seed=2, backend="warp", decimation=1)
     policy = MPPI(env, MPPIConfig(samples=32, horizon_seconds=1.5, plan_dt=0.1, replan_seconds=0.1))
     with torch.no_grad():
         rollout = env.rollout(300, policy, break_when_any_done=False)
@@ -158,7 +158,7 @@ def test_mppi_weights_ignore_diverged_samples():
 
 
 def test_mppi_attitude_height_profile_integrates_the_climb_commands():
-    env = make_env("attitude", "volantex_ranger", num_envs=1, seed=0, maneuver="helix")
+    env = make_env("attitude", "volantex_ranger", num_envs=1, seed=0, maneuver="helix", decimation=1)
     policy = MPPI(env, MPPIConfig(samples=2, horizon_seconds=2.0, plan_dt=0.1))
     td = env.reset()
     policy.start_height.fill_(100.0)

@@ -115,7 +115,7 @@ def test_differential_thrust_through_the_env(backend):
     """Airship V7 (two motors) in the altitude env: per-motor throttle states [N, 2] are published, and
     an asymmetric start (left motor at full throttle, right idle, throttle commands held) yaws the
     craft towards the idle motor while the symmetric one holds its heading."""
-    env = make_env("altitude", "airship_v7", num_envs=2, backend=backend, seed=0)
+    env = make_env("altitude", "airship_v7", num_envs=2, backend=backend, seed=0, decimation=1)
     td = env.reset()
     assert td["state", "throttle"].shape == (2, 2)
     sim = env.sim

@@ -9,6 +9,7 @@ import torch
 from tensordict import TensorDict
 
 from falcon_rl.envs import TASKS, make_env
+from falcon_rl.envs.layout import flat_scalars
 
 
 def assert_finite(td: TensorDict) -> None:
@@ -76,8 +77,8 @@ def test_initial_offsets_and_reference_ramp() -> None:
     env = make_env("altitude", "navion", num_envs=16, seed=4, episode_seconds=10.0, decimation=5)
     rate = env.airframe.envelope.climb_rate_limit
     hold_trim = env.task.trim.command[[0, 3]].expand(16, 2)
-    td = env.rollout(120, policy=lambda tensordict: tensordict.set("action", hold_trim),
-                     break_when_any_done=False)
+    td = flat_scalars(env.rollout(120, policy=lambda tensordict: tensordict.set("action", hold_trim),
+                                  break_when_any_done=False))
     target = td["next", "task", "target_altitude"][:, 0]
     start = td["next", "task", "initial_altitude"][:, 0]
     offset = (start - target).abs()
@@ -100,10 +101,10 @@ def test_target_sequence_releases_a_new_target() -> None:
     env = make_env("altitude", "navion", num_envs=4, target_sequence=True, hold_seconds=0.05,
                    offset_min=0.0, offset_max=0.0)
     td = env.reset()
-    first = td["task", "target_altitude"].clone()
+    first = td["task", "target_altitude"][:, 0].clone()
     hold_trim = env.task.trim.command[[0, 3]].expand(4, 2)
-    td = env.rollout(10, policy=lambda tensordict: tensordict.set("action", hold_trim), tensordict=td,
-                     auto_reset=False)
+    td = flat_scalars(env.rollout(10, policy=lambda tensordict: tensordict.set("action", hold_trim),
+                                  tensordict=td, auto_reset=False))
     new = td["next", "task", "target_altitude"][:, -1]
     assert (new != first).all()
     assert set(new.tolist()) <= {20.0, 40.0, 60.0, 80.0, 100.0}
@@ -111,7 +112,7 @@ def test_target_sequence_releases_a_new_target() -> None:
 
 
 def test_ground_contact_and_stall_terminate_and_horizon_truncates() -> None:
-    env = make_env("altitude", "navion", num_envs=3, episode_seconds=0.05)
+    env = make_env("altitude", "navion", num_envs=3, episode_seconds=0.05, decimation=1)
     td = env.reset()
     env.sim.x[0, 2] = 1.0  # 1 m below ground
     env.sim.x[1, 7:10] = torch.tensor([5.0, 0.0, 0.0])  # far below stall speed
@@ -126,7 +127,7 @@ def test_ground_contact_and_stall_terminate_and_horizon_truncates() -> None:
 
 
 def test_alpha_beyond_stall_terminates() -> None:
-    env = make_env("attitude", "navion", num_envs=2)
+    env = make_env("attitude", "navion", num_envs=2, decimation=1)
     env.reset()
     alpha = 1.6 * env.airframe.aero.alpha_stall
     speed = env.airframe.envelope.cruise_speed

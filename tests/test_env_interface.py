@@ -91,7 +91,7 @@ def test_set_physical_parameters_rejects_bad_names_and_shapes(values: dict, mess
 
 
 def test_episode_step_staggering_is_respected_by_truncation() -> None:
-    env = make_env("altitude", num_envs=N, episode_seconds=0.1)  # 10 steps of 10 ms
+    env = make_env("altitude", num_envs=N, episode_seconds=0.1, decimation=1)  # 10 steps of 10 ms
     assert env.max_episode_steps == 10
     td = env.reset()
     env.set_episode_step(8, mask=torch.tensor([True, False, False, False]))
@@ -112,7 +112,7 @@ def test_episode_step_staggering_is_respected_by_truncation() -> None:
 
 
 def test_stagger_episodes_draws_the_same_offsets_as_before() -> None:
-    env = make_env("altitude", num_envs=64, episode_seconds=1.0)
+    env = make_env("altitude", num_envs=64, episode_seconds=1.0, decimation=1)
     stagger_episodes(TransformedEnv(env, RewardSum()), seed=5)
     expected = torch.randint(0, 100, (64,), generator=torch.Generator().manual_seed(5))
     assert torch.equal(env.episode_step, expected)

@@ -85,7 +85,7 @@ def test_env_state_packs_to_the_simulator_state():
     td = env.reset()
     x = S.StateLayout(env.sim.airframe.num_motors).pack(td["state"])
     assert torch.allclose(x, env.sim.x.to(x.dtype), atol=1e-6)
-    assert torch.allclose(S.height(x), td["state", "height"], atol=1e-5)
+    assert torch.allclose(S.height(x), td["state", "height"][:, 0], atol=1e-5)  # published [N, 1]
     # The linear models' reduced state reads the same fields by name.
     xr = reduced_state(td["state"], FULL_STATES)
     assert torch.equal(xr[:, FULL_STATES.index("q")], td["state", "angular_rate_body"][:, S.PITCH])

@@ -25,6 +25,7 @@ from tensordict.nn import TensorDictModuleBase
 
 from ..airframe import Airframe
 from ..constants import G0
+from ..envs.layout import flat_scalars
 from ..physics import state as S
 from ..physics.trim import TrimError, trim_level
 from .linear_models import (
@@ -225,15 +226,16 @@ class AltitudeLQR(_LQRPolicy):
         return cls(env.sim.airframe, env.env_dt, env.config.ground_effect, env.device, env.sim.dtype)
 
     def forward(self, td: TensorDictBase) -> TensorDictBase:
-        height, airspeed = td["state", "height"], td["state", "airspeed"]
-        x = reduced_state(td["state"], LONGITUDINAL_STATES)
+        v = flat_scalars(td)  # [N] scalars
+        height, airspeed = v["state", "height"], v["state", "airspeed"]
+        x = reduced_state(v["state"], LONGITUDINAL_STATES)
         K, x_trim, u_trim, _ = self.schedule.at(height, airspeed)
-        h_ref = td["task", "reference_altitude"]
+        h_ref = v["task", "reference_altitude"]
         x_ref = x_trim.clone()
         x_ref[:, LONGITUDINAL_INDEX["h"]] = h_ref
-        gamma = td["task", "reference_climb_rate"] / airspeed.clamp_min(1.0)
-        x_ref[:, LONGITUDINAL_INDEX["theta"]] += self._smooth(gamma, td["state", "time"])
-        z = self._integrate((height - h_ref).unsqueeze(-1), td["state", "time"])
+        gamma = v["task", "reference_climb_rate"] / airspeed.clamp_min(1.0)
+        x_ref[:, LONGITUDINAL_INDEX["theta"]] += self._smooth(gamma, v["state", "time"])
+        z = self._integrate((height - h_ref).unsqueeze(-1), v["state", "time"])
         td.set(self.out_keys[0], self._control(x, x_ref, z, K, u_trim))
         return td
 
@@ -257,15 +259,16 @@ class AttitudeLQR(_LQRPolicy):
         return cls(env.sim.airframe, env.env_dt, env.device, env.sim.dtype)
 
     def forward(self, td: TensorDictBase) -> TensorDictBase:
-        euler, height, airspeed = td["state", "euler"], td["state", "height"], td["state", "airspeed"]
-        x = reduced_state(td["state"], FULL_STATES)
+        v = flat_scalars(td)  # [N] scalars
+        euler, height, airspeed = v["state", "euler"], v["state", "height"], v["state", "airspeed"]
+        x = reduced_state(v["state"], FULL_STATES)
         K, x_trim, u_trim, _ = self.schedule.at(height, airspeed)
-        bank, climb, speed = (td["task", k] for k in ("bank_command", "climb_rate_command",
+        bank, climb, speed = (v["task", k] for k in ("bank_command", "climb_rate_command",
                                                       "airspeed_command"))
         x_ref = x_trim.clone()
         uvw = x_trim[:, _UVW]
         x_ref[:, _UVW] = uvw * (speed / uvw.norm(dim=-1)).unsqueeze(-1)
-        gamma = self._smooth(climb / speed.clamp_min(1.0), td["state", "time"])
+        gamma = self._smooth(climb / speed.clamp_min(1.0), v["state", "time"])
         theta = x_trim[:, FULL_INDEX["theta"]] + gamma
         yaw_rate = G0 * torch.tan(bank) / speed.clamp_min(1.0)
         # Coordinated turn: body rates (p, q, r) of the yaw rate at bank phi and pitch theta.
@@ -274,9 +277,9 @@ class AttitudeLQR(_LQRPolicy):
             dim=-1)
         x_ref[:, FULL_INDEX["phi"]] = bank
         x_ref[:, FULL_INDEX["theta"]] = theta
-        climb_rate = -td["state", "velocity_ned"][:, S.DOWN]
+        climb_rate = -v["state", "velocity_ned"][:, S.DOWN]
         error = torch.stack([euler[:, S.ROLL] - bank, climb_rate - climb, airspeed - speed], dim=-1)
-        z = self._integrate(error, td["state", "time"])
+        z = self._integrate(error, v["state", "time"])
         td.set(self.out_keys[0], self._control(x, x_ref, z, K, u_trim))
         return td
 

@@ -38,6 +38,7 @@ from tensordict import TensorDictBase
 from tensordict.nn import TensorDictModuleBase
 
 from ..envs import FixedWingEnv
+from ..envs.layout import flat_scalars
 from ..envs.tasks import task_spec
 from ..physics import Simulator
 from ..physics import state as S
@@ -118,7 +119,7 @@ class MPPI(TensorDictModuleBase):
         self.substeps = stable_substeps(env.sim.airframe, cfg.plan_dt, cfg.stability_margin)
         self.planner = Simulator(env.sim.airframe, self.n * self.k, backend=backend, device=env.device,
                                  dt=cfg.plan_dt / self.substeps, ground_effect=env.config.ground_effect,
-                                 dtype=env.sim.dtype, check_inputs=False)
+                                 dtype=env.sim.dtype, check_inputs=False, stop_at_ground=False)
         self.trim_command = task.trim.command.clone()  # [4]
         self.trim_airspeed = task.trim_airspeed
         self.stall_speed = float(env.sim.airframe.envelope.stall_speed)
@@ -180,6 +181,7 @@ class MPPI(TensorDictModuleBase):
     def _references(self, td: TensorDictBase) -> dict[str, torch.Tensor]:
         """References [H, N*K] at the end of each planning step: the altitude ramp extrapolated in
         closed form, or the attitude command stream read ahead (held when the stream is unknown)."""
+        td = flat_scalars(td)
         tau = self.config.plan_dt * torch.arange(1, self.horizon + 1, device=self.plan.device,
                                                  dtype=self.plan.dtype)[:, None]  # [H, 1]
         if self.tracks == "altitude":
@@ -205,6 +207,7 @@ class MPPI(TensorDictModuleBase):
     def replan(self, td: TensorDictBase, rows: torch.Tensor) -> None:
         """Update the plans of envs ``rows`` [N] bool from their current state."""
         t0, c0 = time.perf_counter(), time.process_time()
+        td = flat_scalars(td)
         cfg, n, k, h = self.config, self.n, self.k, self.horizon
         a = len(self.channels)
         shifted = torch.cat([self.plan[:, self.shift:], self.plan[:, -1:].expand(n, min(self.shift, h), a)],
@@ -244,14 +247,15 @@ class MPPI(TensorDictModuleBase):
 
     # ---------------------------------------------------------------- policy
     def forward(self, td: TensorDictBase) -> TensorDictBase:
-        fresh = td["state", "time"] <= 1e-9
+        view = flat_scalars(td)  # [N] scalars
+        fresh = view["state", "time"] <= 1e-9
         if fresh.any():
             self.plan[fresh] = self.trim_command[self.channels].to(self.plan)
             self.counter[fresh] = 0
-            self.start_height[fresh] = -td["state", "position_ned"][fresh][:, S.DOWN]
+            self.start_height[fresh] = -view["state", "position_ned"][fresh][:, S.DOWN]
         due = (self.counter % self.replan_every) == 0
         if due.any():
-            self.replan(td, due)
+            self.replan(view, due)
             self.counter[due] = 0
         index = (self.counter // self.plan_hold).clamp(max=self.horizon - 1)
         action = self.plan[torch.arange(self.n, device=self.plan.device), index]

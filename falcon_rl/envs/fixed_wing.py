@@ -4,15 +4,29 @@
     td = env.reset()                                # batch [N]
     td = env.rand_step(td)                          # td["next", "observation"], ...
 
-Keys (batch [N]):
+Keys (batch [N]; every entry has a trailing feature dim, scalars are [N, 1], as TorchRL's reward
+and done, so that ``CatTensors``, ``ExcludeTransform`` and replay buffers take them as they are):
     observation              [N, D] float, the task's scaled and clipped observation
-    action                   [N, A] in [-1, 1]
-    ("state", name)          true simulator state (height [N], euler [N, 3], ...): for metrics and
+    action                   [N, A] float in [-1, 1] (see "Actions" below)
+    ("state", name)          true simulator state (height [N, 1], euler [N, 3], ...): for metrics and
                              privileged critics; sensors and delays act on "observation" only
-    ("task", name)           the task's references and tracking errors ([N] or [N, k])
+    ("task", name)           the task's references and tracking errors ([N, 1] or [N, k])
+    termination_reason       [N, 1] long, index in ``TERMINATION_REASONS`` ("none", "ground_contact",
+                             "alpha_stall", "speed_stall", "lost", "non_finite") of why the env
+                             terminated this step, 0 while flying
     reward                   [N, 1]
-    done, terminated, truncated  [N, 1] bool (terminated: crash, stall or a state that is no longer
-                             finite, whose outputs are then zeroed; truncated: horizon)
+    done, terminated, truncated  [N, 1] bool (terminated: a termination reason; truncated: horizon)
+
+``lean=True`` publishes only what a policy needs (observation, termination_reason, reward and the
+done flags): 100-odd bytes per env-step in a replay buffer instead of the ~500 of the full state.
+
+Actions: an [N, A] real floating tensor (cast to the spec's dtype); any other shape or dtype (bool,
+integer, complex) or a missing "action" is refused with a one-line ValueError before anything moves
+(``transforms.action_check``). +-inf and huge values are clamped to [-1, 1], and the clamped action
+is what the physics, the reward's action-rate term and ``previous_action`` see. A row with a NaN is
+flown at the centre command and terminated that step with reason "non_finite". Any env whose state,
+derived state, observation or reward leaves the finite numbers is terminated the same way, its
+outputs zeroed; the other envs are untouched, and no NaN or Inf leaves the env.
 
 The env only uses the Simulator facade (reset / step / state), so it runs on any backend and device
 the Simulator supports. One env step is ``decimation`` physics steps of ``dt`` under the same
@@ -21,8 +35,9 @@ command; the state is read once per env step.
 
 from __future__ import annotations
 
+import secrets
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import torch
@@ -35,8 +50,10 @@ from ..physics import Simulator
 from ..physics.params import RANDOMIZABLE_PARAMETERS
 from ..physics.switches import ModelSwitches
 from ..physics.wind import TurbulenceConfig
+from ..transforms.action_check import check_action
 from ..transforms.presets import nominal_height, resolve_turbulence
-from .tasks import TaskConfig, task_spec
+from .layout import column, simulator_layout
+from .tasks import TERMINATION_CODE, TERMINATION_REASONS, TaskConfig, task_spec
 
 #: Fields of ``Simulator.state`` published under ("state", ...).
 STATE_KEYS: tuple[str, ...] = (
@@ -44,6 +61,9 @@ STATE_KEYS: tuple[str, ...] = (
     "airspeed", "alpha", "beta", "height", "surface_position", "surface_rate", "throttle", "thrust", "time",
     "ground_contact",
 )
+#: Keys of a lean env (``lean=True``): what a policy and a replay buffer need.
+LEAN_KEYS: tuple[str, ...] = ("observation", "termination_reason")
+NON_FINITE = TERMINATION_CODE["non_finite"]
 
 #: Per-env ``ModelParams`` fields that ``set_physical_parameters`` may write: the rows the physics
 #: parameter table flags randomisable (``physics.params.RANDOMIZABLE_PARAMETERS``), written through
@@ -64,17 +84,28 @@ class FixedWingEnvConfig:
     #: Shipped airframe name or JSON path.
     airframe: str = "navion"
     num_envs: int = 1
-    #: Simulator backend: "torch" or "warp" (the scipy reference runs one env; it works too).
-    backend: str = "torch"
+    #: Simulator backend: "warp" (fused kernels, the fastest on CPU and GPU) or "torch" (the
+    #: differentiable reference); the scipy reference runs one env, it works too.
+    backend: str = "warp"
     device: str = "cpu"
-    seed: int = 0
+    #: Seed of every random draw of the env (episodes, turbulence); None: fresh entropy.
+    seed: int | None = None
     #: Physics step, s (the paper integrates at 10 ms).
     dt: float = 0.01
-    #: Physics steps per env step (control period = decimation x dt).
-    decimation: int = 1
+    #: Physics steps per env step (control period = decimation x dt); None: the task's default
+    #: (``TaskSpec.defaults``: 5, i.e. 20 Hz control, the rate the recipes train at).
+    decimation: int | None = None
     integrator: str = "rk4"
     #: True / "induced", "paper" or False.
     ground_effect: bool | str = True
+    #: Floating dtype of the simulation and of every float entry (torch.float32 or torch.float64).
+    dtype: torch.dtype = torch.float32
+    #: Torch backend: step through torch.compile (see ``Simulator``).
+    compile: bool = False
+    #: Warp backend on the CPU: threads (None: one per core, at most one per 512 envs).
+    warp_cpu_threads: int | None = None
+    #: Publish only observation, termination_reason, reward and done flags (lean replay buffers).
+    lean: bool = False
     #: Steady wind in NED, m/s.
     wind: tuple[float, float, float] | None = None
     #: Dryden turbulence: None (off), a MIL severity ("very_light", "light", "moderate", "severe"),
@@ -84,7 +115,7 @@ class FixedWingEnvConfig:
     #: Model switches for ablations: None (the full model), a ``ModelSwitches`` or a mapping of its
     #: fields, e.g. {"actuators": "ideal", "throttle_lag": False} (see ``falcon_rl.physics.switches``).
     model: ModelSwitches | Mapping[str, Any] | None = None
-    #: The task's config; None takes the task's defaults.
+    #: The task's config; None takes the task's defaults (``TaskSpec.default_config()``).
     task_config: TaskConfig | None = field(default=None)
 
 
@@ -129,24 +160,28 @@ class FixedWingEnv(EnvBase):
     def __init__(self, config: FixedWingEnvConfig | None = None, airframe: Airframe | None = None):
         config = config or FixedWingEnvConfig()
         spec = task_spec(config.task)
-        if config.decimation < 1:
-            raise ValueError(f"decimation must be >= 1, got {config.decimation}")
+        decimation = config.decimation if config.decimation is not None else spec.env_default("decimation", 1)
+        if not (isinstance(decimation, int) and decimation >= 1):
+            raise ValueError(f"decimation must be an int >= 1, got {decimation!r}")
+        if config.seed is None:
+            config = replace(config, seed=secrets.randbits(62))  # fresh entropy, recorded in the config
+        config = replace(config, decimation=decimation)
         device = torch.device(config.device)
         super().__init__(batch_size=torch.Size([config.num_envs]), device=device)
         self.config = config
         self.airframe = airframe or load_airframe(config.airframe)
-        task_cls, config_cls = spec.task, spec.config
-        task_config = config.task_config if config.task_config is not None else config_cls()
+        task_config = config.task_config if config.task_config is not None else spec.default_config()
         trim_airspeed = task_config.trim_airspeed or self.airframe.envelope.cruise_speed
         turbulence = resolve_turbulence(config.turbulence, trim_airspeed, nominal_height(task_config))
         self.sim = Simulator(self.airframe, num_envs=config.num_envs, backend=config.backend,
                              device=device, dt=config.dt, integrator=config.integrator,
                              ground_effect=config.ground_effect,
                              wind=None if config.wind is None else list(config.wind),
-                             turbulence=turbulence, seed=config.seed, model=config.model)
+                             turbulence=turbulence, seed=config.seed, model=config.model, dtype=config.dtype,
+                             compile=config.compile, warp_cpu_threads=config.warp_cpu_threads)
         self.generator = torch.Generator(device=device)
-        self.env_dt = config.dt * config.decimation
-        self.task = task_cls(task_config, self.sim, self.generator, self.env_dt, config.ground_effect)
+        self.env_dt = config.dt * decimation
+        self.task = spec.task(task_config, self.sim, self.generator, self.env_dt, config.ground_effect)
         self.max_episode_steps = max(1, round(self.task.episode_seconds / self.env_dt))
         self.step_count = torch.zeros(config.num_envs, dtype=torch.long, device=device)
         self._nominal_parameters = self.physical_parameters()
@@ -155,24 +190,30 @@ class FixedWingEnv(EnvBase):
 
     # ------------------------------------------------------------------ specs
     def _make_specs(self) -> None:
-        n, task, dev = self.config.num_envs, self.task, self.device
-        state = self.sim.state
-        state_spec = Composite(
-            {key: (Categorical(2, shape=state[key].shape, dtype=torch.bool, device=dev)
-                   if state[key].dtype == torch.bool
-                   else Unbounded(shape=state[key].shape, dtype=state[key].dtype, device=dev))
-             for key in STATE_KEYS},
-            shape=(n,), device=dev)
-        task_spec = Composite(
-            {key: Unbounded(shape=(n, *shape), dtype=self.sim.dtype, device=dev)
-             for key, shape in task.info_shapes().items()},
-            shape=(n,), device=dev)
-        clip = task.observation_clip
-        self.observation_spec = Composite(
-            observation=Bounded(-clip, clip, shape=(n, task.observation_dim), dtype=self.sim.dtype,
+        n, dev = self.config.num_envs, self.device
+        sample = self._output(self.task.observe(self.sim.state), self.sim.state,
+                              torch.zeros(n, dtype=torch.long, device=dev),
+                              torch.zeros(n, 1, dtype=torch.bool, device=dev), reward=None)
+
+        def leaf(value: torch.Tensor) -> Bounded | Categorical | Unbounded:
+            if value.dtype == torch.bool:
+                return Categorical(2, shape=value.shape, dtype=torch.bool, device=dev)
+            return Unbounded(shape=value.shape, dtype=value.dtype, device=dev)
+
+        clip = self.task.observation_clip
+        spec = Composite(
+            observation=Bounded(-clip, clip, shape=(n, self.task.observation_dim), dtype=self.sim.dtype,
                                 device=dev),
-            state=state_spec, task=task_spec, shape=(n,), device=dev)
-        self.action_spec = Bounded(-1.0, 1.0, shape=(n, task.action_dim), dtype=self.sim.dtype, device=dev)
+            termination_reason=Categorical(len(TERMINATION_REASONS), shape=(n, 1), dtype=torch.long,
+                                           device=dev),
+            shape=(n,), device=dev)
+        if not self.config.lean:
+            for group in ("state", "task"):
+                spec[group] = Composite({key: leaf(value) for key, value in sample[group].items()},
+                                        shape=(n,), device=dev)
+        self.observation_spec = spec
+        self.action_spec = Bounded(-1.0, 1.0, shape=(n, self.task.action_dim), dtype=self.sim.dtype,
+                                   device=dev)
         self.reward_spec = Unbounded(shape=(n, 1), dtype=self.sim.dtype, device=dev)
         self.done_spec = Composite(
             {key: Categorical(2, shape=(n, 1), dtype=torch.bool, device=dev)
@@ -182,7 +223,7 @@ class FixedWingEnv(EnvBase):
     # ------------------------------------------------------------------ EnvBase API
     def _set_seed(self, seed: int | None) -> None:
         if seed is None:
-            seed = int(torch.randint(0, 2**62, (1,)).item())
+            seed = secrets.randbits(62)  # fresh entropy, never a shared default
         seed = int(seed) % (2**62)
         self.generator.manual_seed(seed)
         self.sim.reseed(seed + 1)
@@ -199,27 +240,31 @@ class FixedWingEnv(EnvBase):
             state = self.sim.state
         self.step_count.masked_fill_(mask, 0)
         self.task.after_reset(state, mask)
+        reason = torch.zeros(n, dtype=torch.long, device=self.device)
         no = torch.zeros(n, 1, dtype=torch.bool, device=self.device)
-        return self._output(self.task.observe(state), state, no, no, reward=None)
+        return self._output(self.task.observe(state), state, reason, no, reward=None)
 
     def observe(self, state: TensorDictBase) -> torch.Tensor:
-        """[N, D] observation the task makes of ``state`` ([N] fields as under ("state", ...), e.g. a
-        measured one) with its current buffers, without side effects (the sensor transform's hook)."""
-        return self.task.observe(state)
+        """[N, D] observation the task makes of ``state`` (fields as under ("state", ...), e.g. a
+        measured one; [N, 1] scalars or the simulator's [N]) with its current buffers, without side
+        effects (the sensor transform's hook)."""
+        return self.task.observe(simulator_layout(state, self.config.num_envs))
 
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
-        action = tensordict.get("action")
+        n = self.config.num_envs
+        action, nan_action = check_action(tensordict.get("action", None), n, self.task.action_dim,
+                                          self.sim.dtype, self.device)
         command = self.task.command(action)
         self.sim.step(command, substeps=self.config.decimation)
         state = self.sim.state
-        observation, reward, terminated = self.task.step(state, action)
+        observation, reward, reason = self.task.step(state, action)
         self.step_count += 1
         truncated = self.step_count >= self.max_episode_steps
-        diverged = ~torch.isfinite(self.sim.x).all(-1)  # [N]: the physics left the finite numbers
-        out = self._output(observation, state, (terminated | diverged).unsqueeze(-1), truncated.unsqueeze(-1),
-                           reward=reward.unsqueeze(-1))
-        if bool(diverged.any()):
-            out = self._zero_non_finite(out, diverged)
+        non_finite = nan_action | ~_finite_rows(state, observation, reward)
+        reason = torch.where(non_finite, NON_FINITE, reason)
+        out = self._output(observation, state, reason, truncated.unsqueeze(-1), reward=reward.unsqueeze(-1))
+        if bool(non_finite.any()):
+            out = self._zero_non_finite(out, non_finite)
         return out
 
     @staticmethod
@@ -234,17 +279,21 @@ class FixedWingEnv(EnvBase):
 
         return out.apply(clean)
 
-    def _output(self, observation: torch.Tensor, state: TensorDictBase, terminated: torch.Tensor,
+    def _output(self, observation: torch.Tensor, state: TensorDictBase, reason: torch.Tensor,
                 truncated: torch.Tensor, reward: torch.Tensor | None) -> TensorDictBase:
+        """The step or reset output; ``reason`` [N] long (0: not terminated), ``truncated`` [N, 1]."""
+        terminated = (reason > 0).unsqueeze(-1)
         truncated = truncated & ~terminated
         out = {
             "observation": observation,
-            "state": state.select(*STATE_KEYS),
-            "task": self.task.info(),
+            "termination_reason": reason.unsqueeze(-1),
             "terminated": terminated,
             "truncated": truncated,
             "done": terminated | truncated,
         }
+        if not self.config.lean:
+            out["state"] = {key: column(state[key]) for key in STATE_KEYS}
+            out["task"] = {key: column(value) for key, value in self.task.info().items()}
         if reward is not None:
             out["reward"] = reward
         return TensorDict(out, batch_size=self.batch_size, device=self.device)
@@ -363,3 +412,11 @@ class FixedWingEnv(EnvBase):
         if mask.numel() != n:
             raise ValueError(f"mask must have {n} entries, got shape {list(mask.shape)}")
         return mask.reshape(n).to(self.device, torch.bool)
+
+
+def _finite_rows(state: TensorDictBase, observation: torch.Tensor, reward: torch.Tensor) -> torch.Tensor:
+    """[N] bool: every float of the row's state (integrated and derived), observation and reward is
+    finite."""
+    n = reward.shape[0]
+    floats = [value.reshape(n, -1) for value in state.values() if value.is_floating_point()]
+    return torch.isfinite(torch.cat([*floats, observation.reshape(n, -1), reward.reshape(n, 1)], -1)).all(-1)

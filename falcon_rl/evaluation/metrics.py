@@ -24,6 +24,8 @@ import math
 import torch
 from tensordict import TensorDictBase
 
+from ..envs.layout import flat_scalars
+
 
 def first_episode_mask(done: torch.Tensor) -> torch.Tensor:
     """[N, T] bool: the steps of each row's first episode, up to and including its first done.
@@ -143,7 +145,7 @@ def altitude_metrics(rollout: TensorDictBase, band: float = 1.0, grace_seconds: 
     altitude or climb_descend task), scored on the first episode of each row with e = h - h*:
     the true height from ("next", "state", "height") and h* from ("next", "task", "target_altitude").
     W starts ``grace_seconds`` after the reference ramp ends; time-in-band uses the band delta."""
-    nxt = rollout["next"]
+    nxt = flat_scalars(rollout["next"])
     valid = first_episode_mask(nxt["done"])
     error = nxt["state", "height"] - nxt["task", "target_altitude"]
     dt = float(nxt["state", "time"][0, 0])
@@ -165,7 +167,7 @@ def attitude_metrics(rollout: TensorDictBase, bank_tolerance: float = math.radia
     """Per-episode metrics [N] of an attitude-task rollout: survival, bank RMSE (rad) and
     time-in-band over the whole scored episode, and climb-rate / airspeed RMSE, all recomputed from
     the true state against the commanded stream."""
-    nxt = rollout["next"]
+    nxt = flat_scalars(rollout["next"])
     valid = first_episode_mask(nxt["done"])
     bank_error = nxt["state", "euler"][..., 0] - nxt["task", "bank_command"]
     climb_error = -nxt["state", "velocity_ned"][..., 2] - nxt["task", "climb_rate_command"]

@@ -2,7 +2,7 @@
 
 Each registered task names its protocol in its ``TaskSpec``; all share one signature,
 
-    protocol(airframe, controller, factory, episodes=..., seed=0, backend="torch", device="cpu",
+    protocol(airframe, controller, factory, episodes=..., seed=0, backend="warp", device="cpu",
              episode_seconds=None, **env_options) -> ProtocolResult
 
 with ``factory(env) -> policy`` and ``episode_seconds`` None for the protocol's own horizon.
@@ -36,6 +36,7 @@ from tqdm import tqdm
 
 from ..airframe import load_airframe
 from ..envs import FixedWingEnv, make_env
+from ..envs.layout import flat_scalars
 from ..envs.maneuvers import MANEUVERS
 from ..envs.tasks import ClimbDescendConfig
 from .metrics import altitude_metrics, attitude_metrics, summarize
@@ -62,6 +63,8 @@ TRAJECTORY_TRACES = (("next", "state", "position_ned"), ("next", "task", "refere
 
 #: Climb and descend: seconds flown after the slowest ramp of the task's distribution has ended.
 LEVEL_OFF_SECONDS = 20.0
+#: The protocols control at the paper's 10 ms step: one physics step of 10 ms per env step.
+PROTOCOL_DECIMATION = 1
 #: Altitude: the paper's episode length, s.
 ALTITUDE_SECONDS = 30.0
 
@@ -93,13 +96,17 @@ def _rollout(env: FixedWingEnv, policy: TensorDictModuleBase, steps: int, label:
             td = env.step(td)
             frames.append(td.clone())
             td = env.step_mdp(td)
-    return torch.stack(frames, dim=1), policy_seconds / max(steps, 1)
+    rollout = torch.stack(frames, dim=1)
+    rollout.set("next", flat_scalars(rollout["next"]))  # [N, T] series for the metrics and figures
+    return rollout, policy_seconds / max(steps, 1)
 
 
 def _fly(task: str, airframe: str, controller: str, factory: ControllerFactory, episodes: int, seed: int,
          backend: str, device: str, **env_options) -> tuple[FixedWingEnv, TensorDictBase, float]:
     """Roll ``episodes`` envs of ``task`` for one horizon under ``factory(env)``:
-    (env, rollout [N, T], s per policy call)."""
+    (env, rollout [N, T], s per policy call). The control step is the paper's 10 ms (decimation 1
+    of the 10 ms physics step) unless ``env_options`` say otherwise."""
+    env_options = {"decimation": PROTOCOL_DECIMATION, **env_options}
     env = make_env(task, airframe, num_envs=episodes, backend=backend, device=device, seed=seed,
                    **env_options)
     rollout, per_step = _rollout(env, factory(env), env.max_episode_steps, f"{controller} {task} {airframe}")
@@ -113,7 +120,7 @@ def in_units(summary: dict[str, float]) -> dict[str, float]:
 
 
 def tracking_protocol(task: str, metrics: EpisodeMetrics, traces: tuple, airframe: str, controller: str,
-                      factory: ControllerFactory, episodes: int = 20, seed: int = 0, backend: str = "torch",
+                      factory: ControllerFactory, episodes: int = 20, seed: int = 0, backend: str = "warp",
                       device: str = "cpu", episode_seconds: float | None = None,
                       **env_options) -> ProtocolResult:
     """Fly ``episodes`` envs of ``task`` for one horizon (the task's own unless ``episode_seconds``) and
@@ -134,7 +141,7 @@ def tracking_protocol(task: str, metrics: EpisodeMetrics, traces: tuple, airfram
 
 
 def altitude_protocol(airframe: str, controller: str, factory: ControllerFactory, episodes: int = 20,
-                      seed: int = 0, backend: str = "torch", device: str = "cpu",
+                      seed: int = 0, backend: str = "warp", device: str = "cpu",
                       episode_seconds: float | None = None, **env_options) -> ProtocolResult:
     """Fly ``episodes`` altitude episodes (``ALTITUDE_SECONDS`` unless ``episode_seconds``) in parallel
     and score them (true state)."""
@@ -155,7 +162,7 @@ def altitude_protocol(airframe: str, controller: str, factory: ControllerFactory
 
 
 def attitude_protocol(airframe: str, controller: str, factory: ControllerFactory, episodes: int = 1,
-                      seed: int = 0, backend: str = "torch", device: str = "cpu",
+                      seed: int = 0, backend: str = "warp", device: str = "cpu",
                       episode_seconds: float | None = None, maneuvers: tuple[str, ...] = MANEUVERS,
                       **env_options) -> ProtocolResult:
     """Fly each maneuver stream (``episodes`` envs each; its first ``episode_seconds`` when given) and
@@ -163,6 +170,7 @@ def attitude_protocol(airframe: str, controller: str, factory: ControllerFactory
     summary: dict[str, float] = {}
     per_episode: dict[str, torch.Tensor] = {}
     traces, per_step = {}, []
+    env_options = {"decimation": PROTOCOL_DECIMATION, **env_options}
     for name in maneuvers:
         env = make_env("attitude", airframe, num_envs=episodes, backend=backend, device=device, seed=seed,
                        maneuver=name, **env_options)
@@ -196,7 +204,7 @@ def climb_descend_seconds(airframe: str, **env_options) -> float:
 
 
 def climb_descend_protocol(airframe: str, controller: str, factory: ControllerFactory, episodes: int = 20,
-                           seed: int = 0, backend: str = "torch", device: str = "cpu",
+                           seed: int = 0, backend: str = "warp", device: str = "cpu",
                            episode_seconds: float | None = None, **env_options) -> ProtocolResult:
     """Fly ``episodes`` climb/descend episodes (:func:`climb_descend_seconds` unless ``episode_seconds``):
     climb-rate tracking on the ramp, then level-off at the commanded altitude."""
@@ -206,7 +214,7 @@ def climb_descend_protocol(airframe: str, controller: str, factory: ControllerFa
 
 
 def path_following_protocol(airframe: str, controller: str, factory: ControllerFactory, episodes: int = 20,
-                            seed: int = 0, backend: str = "torch", device: str = "cpu",
+                            seed: int = 0, backend: str = "warp", device: str = "cpu",
                             episode_seconds: float | None = None, **env_options) -> ProtocolResult:
     """Fly ``episodes`` path-following episodes (the task's horizon unless ``episode_seconds``): survival,
     completion, capture time, cross-track / course / altitude RMSE after the intercept."""
@@ -216,7 +224,7 @@ def path_following_protocol(airframe: str, controller: str, factory: ControllerF
 
 
 def trajectory_protocol(airframe: str, controller: str, factory: ControllerFactory, episodes: int = 20,
-                        seed: int = 0, backend: str = "torch", device: str = "cpu",
+                        seed: int = 0, backend: str = "warp", device: str = "cpu",
                         episode_seconds: float | None = None, **env_options) -> ProtocolResult:
     """Fly ``episodes`` trajectory episodes (the task's horizon unless ``episode_seconds``): survival and
     3D / horizontal / vertical position RMSE and time within 10 m after the intercept."""

@@ -38,6 +38,7 @@ import math
 import torch
 from tensordict import TensorDictBase
 
+from ..envs.layout import flat_scalars
 from .metrics import (
     acquisition,
     first_episode_mask,
@@ -60,7 +61,7 @@ def _step_dt(nxt: TensorDictBase) -> float:
 def climb_descend_metrics(rollout: TensorDictBase, band: float = 1.0, grace_seconds: float = 5.0
                           ) -> dict[str, torch.Tensor]:
     """Per-episode metrics [N] of a climb/descend rollout (see the module docstring)."""
-    nxt = rollout["next"]
+    nxt = flat_scalars(rollout["next"])
     valid = first_episode_mask(nxt["done"])
     dt = _step_dt(nxt)
     height, rate = nxt["state", "height"], nxt["task", "reference_climb_rate"]
@@ -89,7 +90,7 @@ def climb_descend_metrics(rollout: TensorDictBase, band: float = 1.0, grace_seco
 def path_following_metrics(rollout: TensorDictBase, band: float = 5.0, intercept_seconds: float = 15.0
                            ) -> dict[str, torch.Tensor]:
     """Per-episode metrics [N] of a path-following rollout (see the module docstring)."""
-    nxt = rollout["next"]
+    nxt = flat_scalars(rollout["next"])
     valid = first_episode_mask(nxt["done"])
     dt = _step_dt(nxt)
     course = nxt["task", "path_course"]
@@ -114,7 +115,7 @@ def path_following_metrics(rollout: TensorDictBase, band: float = 5.0, intercept
 def trajectory_metrics(rollout: TensorDictBase, tolerance: float = 10.0, intercept_seconds: float = 10.0
                        ) -> dict[str, torch.Tensor]:
     """Per-episode metrics [N] of a 3D trajectory rollout (see the module docstring)."""
-    nxt = rollout["next"]
+    nxt = flat_scalars(rollout["next"])
     valid = first_episode_mask(nxt["done"])
     dt = _step_dt(nxt)
     error = nxt["state", "position_ned"] - nxt["task", "reference_position"]  # [N, T, 3]

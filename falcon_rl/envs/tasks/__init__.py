@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from .altitude import AltitudeConfig, AltitudeTask
 from .attitude import AttitudeConfig, AttitudeTask
-from .base import Task, TaskConfig
+from .base import TERMINATION_CODE, TERMINATION_REASONS, Task, TaskConfig
 from .climb_descend import ClimbDescendConfig, ClimbDescendTask
 from .path_following import PathFollowingConfig, PathFollowingTask
 from .registry import (
@@ -27,8 +27,28 @@ from .registry import (
 from .trajectory import TrajectoryConfig, TrajectoryTask
 
 __all__ = [
-    "TASKS", "TASK_SPECS", "TRIM_HOLD", "AltitudeConfig", "AltitudeTask", "AttitudeConfig", "AttitudeTask",
-    "ClimbDescendConfig", "ClimbDescendTask", "Metric", "PathFollowingConfig", "PathFollowingTask", "Task",
-    "TaskConfig", "TaskSpec", "TrajectoryConfig", "TrajectoryTask", "register_task", "resolve", "task_names",
-    "task_spec", "unregister_task",
+    "TASKS",
+    "TASK_SPECS",
+    "TERMINATION_CODE",
+    "TERMINATION_REASONS",
+    "TRIM_HOLD",
+    "AltitudeConfig",
+    "AltitudeTask",
+    "AttitudeConfig",
+    "AttitudeTask",
+    "ClimbDescendConfig",
+    "ClimbDescendTask",
+    "Metric",
+    "PathFollowingConfig",
+    "PathFollowingTask",
+    "Task",
+    "TaskConfig",
+    "TaskSpec",
+    "TrajectoryConfig",
+    "TrajectoryTask",
+    "register_task",
+    "resolve",
+    "task_names",
+    "task_spec",
+    "unregister_task",
 ]

@@ -49,7 +49,7 @@ from ...constants import DEG
 from ...physics import Simulator
 from ...physics import state as S
 from .base import Task, TaskConfig, gaussian, normalised_surfaces, taper
-from .registry import TRIM_HOLD, Metric, TaskSpec, register_task
+from .registry import TRAINING_DECIMATION, TRIM_HOLD, Metric, TaskSpec, register_task
 
 
 @dataclass
@@ -232,11 +232,12 @@ class AltitudeTask(Task):
         }
 
 
-#: The training env of every recipe on this task: control at 20 Hz (decimation 5 of the 10 ms physics
-#: step), so that gamma 0.99 looks ~5 s ahead; a survival bonus that outweighs the shaping penalties
-#: (ending an episode never pays); no overshoot penalty; sigma_h 6 m so the Gaussian altitude term
-#: still has a gradient 10-15 m from the reference.
-TRAINING_ENV_OPTIONS: dict = {"decimation": 5, "survival_bonus": 1.0, "w_overshoot": 0.0,
+#: The env this task is built with by default and every recipe trains on: control at 20 Hz
+#: (decimation 5 of the 10 ms physics step), so that gamma 0.99 looks ~5 s ahead; a survival bonus
+#: that outweighs the shaping penalties (ending an episode never pays); no overshoot penalty; sigma_h
+#: 6 m so the Gaussian altitude term still has a gradient 10-15 m from the reference. The paper's
+#: reward is ``survival_bonus=0, w_overshoot=<AltitudeConfig's>, sigma_altitude=<AltitudeConfig's>``.
+TRAINING_ENV_OPTIONS: dict = {"decimation": TRAINING_DECIMATION, "survival_bonus": 1.0, "w_overshoot": 0.0,
                               "sigma_altitude": 6.0}
 
 #: The paper's altitude protocol columns (Table "altitude-protocol").
@@ -254,8 +255,7 @@ SPEC = register_task(TaskSpec(
     controllers={"lqr": "falcon_rl.baselines.lqr:AltitudeLQR.from_env",
                  "mppi": "falcon_rl.baselines.mppi:altitude_mppi", "trim": TRIM_HOLD},
     figure="falcon_rl.viz.evaluation:plot_altitude",
-    training={"ppo": {"num_envs": 256, "frames": 8_000_000, "episode_seconds": 20.0, "reward_scale": 0.1,
-                      "env_options": TRAINING_ENV_OPTIONS},
-              "sac": {"episode_seconds": 20.0, "env_options": TRAINING_ENV_OPTIONS},
-              "td3": {"episode_seconds": 20.0, "env_options": TRAINING_ENV_OPTIONS}},
+    training={"ppo": {"num_envs": 256, "frames": 8_000_000, "episode_seconds": 20.0, "reward_scale": 0.1},
+              "sac": {"episode_seconds": 20.0}, "td3": {"episode_seconds": 20.0}},
+    defaults=TRAINING_ENV_OPTIONS,
 ))

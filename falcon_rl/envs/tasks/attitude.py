@@ -172,10 +172,10 @@ class AttitudeTask(Task):
         }
 
 
-#: Training defaults (on top of each recipe's own): 20 Hz control (decimation 5), the task's own reward;
+#: Training defaults (on top of each recipe's own): the env's defaults (20 Hz control), the task's own reward;
 #: PPO's training return plateaus after ~3 M of the 8 M frames. The protocol flies ``episodes`` per
 #: maneuver, so the evaluations fly 4 (periodic) and 25 (final) episodes of each of the four.
-_TRAINING = {"env_options": {"decimation": 5}, "eval_episodes": 4, "final_eval_episodes": 25}
+_TRAINING = {"eval_episodes": 4, "final_eval_episodes": 25}
 
 SPEC = register_task(TaskSpec(
     name="attitude", task=AttitudeTask, config=AttitudeConfig, gym_id="falcon_rl/Attitude-v0",

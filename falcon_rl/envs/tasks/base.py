@@ -5,18 +5,23 @@ A task is one small module holding a config dataclass and a :class:`Task` subcla
 
     initial = task.sample_initial(mask)      # before Simulator.reset(initial, mask)
     task.after_reset(state, mask)            # reference and filter buffers of the reset rows
-    command = task.command(action)           # [N, A] policy action -> [N, 4] simulator command
-    obs, reward, terminated = task.step(state, action)       # after the physics steps
+    command = task.command(action)           # [N, A] checked action in [-1, 1] -> [N, 4] command
+    obs, reward, reason = task.step(state, action)           # after the physics steps
     obs = task.observe(state)                # [N, D] scaled and clipped observation (after reset)
 
 ``step`` runs advance (clock, reference) -> update (filters fed by the new state) -> reward ->
-terminated -> remember the action as a_{t-1} -> observe.
+termination reason -> remember the action as a_{t-1} -> observe.
 
 and publishes ``task.info()`` (named [N] / [N, k] tensors) under the ("task", ...) keys.
 
 Termination shared by all tasks (the paper's altitude task, reused by the others):
 
     terminated = ground_contact  |  |alpha| > 1.5 alpha_stall  |  V_a < V_stall
+
+Each termination has a reason, an index into :data:`TERMINATION_REASONS` that the env publishes as
+"termination_reason" (the first that applies, in that order; 0 while flying). A task adds its own
+(e.g. "lost": too far from the path) by extending :meth:`Task.termination_checks`; the env adds
+"non_finite" for a state, reward or action that is no longer finite.
 """
 
 from __future__ import annotations
@@ -33,6 +38,13 @@ from ...airframe import Airframe
 from ...physics import Simulator, trim_level
 from ...physics import state as S
 from ...physics.rotations import quaternion_to_euler
+
+#: Why an episode terminated: "termination_reason" holds the index (0: not terminated). Checked in
+#: this order, the first that applies is published.
+TERMINATION_REASONS: tuple[str, ...] = ("none", "ground_contact", "alpha_stall", "speed_stall", "lost",
+                                        "non_finite")
+#: Index of each reason in :data:`TERMINATION_REASONS`.
+TERMINATION_CODE: dict[str, int] = {name: code for code, name in enumerate(TERMINATION_REASONS)}
 
 _TRIM_CACHE: dict[tuple[str, str, float, float, str], tuple[torch.Tensor, torch.Tensor]] = {}
 
@@ -177,10 +189,23 @@ class Task(ABC):
     def reward(self, state: TensorDictBase, action: torch.Tensor) -> torch.Tensor:
         """[N] reward of the transition that ended in ``state`` under ``action`` [N, A]."""
 
+    def termination_checks(self, state: TensorDictBase) -> dict[str, torch.Tensor]:
+        """{reason: [N] bool} of the terminations this task checks (names of TERMINATION_REASONS):
+        ground contact, alpha stall (|alpha| > k alpha_stall) and speed stall (V_a < V_stall)."""
+        return {"ground_contact": state["ground_contact"],
+                "alpha_stall": state["alpha"].abs() > self.stall_alpha,
+                "speed_stall": state["airspeed"] < self.stall_speed}
+
+    def termination_reason(self, state: TensorDictBase) -> torch.Tensor:
+        """[N] long: the index in TERMINATION_REASONS of the first termination that applies, 0 none."""
+        reason = torch.zeros(self.num_envs, dtype=torch.long, device=self.device)
+        for name, hit in reversed(list(self.termination_checks(state).items())):
+            reason = torch.where(hit, TERMINATION_CODE[name], reason)
+        return reason
+
     def terminated(self, state: TensorDictBase) -> torch.Tensor:
-        """[N] bool: ground contact or stall (|alpha| > k alpha_stall or V_a < V_stall)."""
-        return (state["ground_contact"] | (state["alpha"].abs() > self.stall_alpha)
-                | (state["airspeed"] < self.stall_speed))
+        """[N] bool: any of :meth:`termination_checks`."""
+        return self.termination_reason(state) > 0
 
     def update(self, state: TensorDictBase) -> None:
         """Per-step filters fed by the new state (integrals, rates, target release); optional."""
@@ -188,14 +213,14 @@ class Task(ABC):
 
     def step(self, state: TensorDictBase, action: torch.Tensor
              ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """(observation [N, D], reward [N], terminated [N] bool) after an env step that applied
-        ``action`` [N, A] and ended in ``state``."""
+        """(observation [N, D], reward [N], termination reason [N] long, 0 while flying) after an env
+        step that applied ``action`` [N, A] (checked: finite, in [-1, 1]) and ended in ``state``."""
         self.advance()
         self.update(state)
         reward = self.reward(state, action)
-        terminated = self.terminated(state)
+        reason = self.termination_reason(state)
         self.previous_action.copy_(action)
-        return self.observe(state), reward, terminated
+        return self.observe(state), reward, reason
 
     @abstractmethod
     def info(self) -> dict[str, torch.Tensor]:

@@ -126,8 +126,10 @@ class PathFollowingTask(Task):
                 - cfg.w_energy * airspeed_margin_penalty(state["airspeed"], self.safe_airspeed)
                 - cfg.w_smooth * action_rate)
 
-    def terminated(self, state: TensorDictBase) -> torch.Tensor:
-        return super().terminated(state) | (self.errors[:, 0].abs() > self.config.lost_distance)
+    def termination_checks(self, state: TensorDictBase) -> dict[str, torch.Tensor]:
+        """The shared checks plus "lost": cross-track error beyond ``lost_distance``."""
+        lost = self.errors[:, 0].abs() > self.config.lost_distance
+        return {**super().termination_checks(state), "lost": lost}
 
     def info(self) -> dict[str, torch.Tensor]:
         return {"cross_track_error": self.errors[:, 0].clone(), "course_error": self.errors[:, 1].clone(),

@@ -5,6 +5,7 @@
     policy = spec.controller("lqr")(env)                              # a baseline that applies
     result = spec.protocol_function()(airframe, label, factory, episodes=20)
     defaults = spec.training_defaults("ppo")                          # recipe fields of the task
+    spec.defaults                                                     # what make_env builds by default
 
 Every task module registers its own spec beside its Task and config classes; a task defined
 elsewhere (a user's module, a test) registers one the same way and is then reached by ``make_env``,
@@ -19,6 +20,7 @@ defaults are plain data.
 from __future__ import annotations
 
 import copy
+import dataclasses
 import importlib
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
@@ -35,6 +37,15 @@ TRIM_HOLD: str = "falcon_rl.evaluation.controllers:TrimHold"
 
 #: Recipe names the training defaults may be given for.
 ALGORITHMS: tuple[str, ...] = ("ppo", "sac", "td3")
+
+#: Env-level settings (fields of ``FixedWingEnvConfig``) a task's ``defaults`` may set; every other
+#: name in ``defaults`` must be a field of the task's config dataclass.
+ENV_DEFAULT_FIELDS: tuple[str, ...] = ("decimation", "dt", "integrator", "ground_effect")
+
+#: Control at 20 Hz (decimation 5 of the 10 ms physics step): the rate every recipe trains at (gamma
+#: 0.99 then looks ~5 s ahead) and the env's default; the evaluation protocols fly the paper's 10 ms
+#: control step (decimation 1) unless told otherwise.
+TRAINING_DECIMATION = 5
 
 
 def resolve(ref: Ref) -> Callable[..., Any]:
@@ -76,7 +87,11 @@ class TaskSpec:
     builds the policy for the protocol's env. ``controllers`` maps a controller name to a factory
     ``(env) -> policy`` (TensorDictModule reading the env's keys, writing "action"). ``figure`` is
     called as ``figure(result, path) -> path``. ``training`` maps a recipe name (ppo, sac, td3) to the
-    fields of its config that this task sets on top of the recipe's own defaults.
+    fields of its config that this task sets on top of the recipe's own defaults. ``defaults`` are the
+    settings an env of this task is built with unless the caller gives others (``make_env``,
+    ``FixedWingEnvConfig``, the Gymnasium ids): env fields of :data:`ENV_DEFAULT_FIELDS` and fields of
+    the task config (reward settings); they are what the recipes train on, so the env a user builds
+    is the env the shipped policies learned in.
     """
 
     name: str
@@ -92,12 +107,19 @@ class TaskSpec:
     controllers: Mapping[str, Ref] = field(default_factory=dict)
     figure: Ref | None = None
     training: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    defaults: Mapping[str, Any] = field(default_factory=lambda: {"decimation": TRAINING_DECIMATION})
 
     def __post_init__(self) -> None:
         unknown = set(self.training) - set(ALGORITHMS)
         if unknown:
             raise ValueError(f"task {self.name!r}: training defaults for unknown recipes {sorted(unknown)}; "
                              f"recipes: {list(ALGORITHMS)}")
+        config_fields = {f.name for f in dataclasses.fields(self.config)}
+        unknown = set(self.defaults) - config_fields - set(ENV_DEFAULT_FIELDS)
+        if unknown:
+            raise ValueError(f"task {self.name!r}: defaults {sorted(unknown)} are neither env settings "
+                             f"{list(ENV_DEFAULT_FIELDS)} nor fields of {self.config.__name__}")
+        object.__setattr__(self, "defaults", MappingProxyType(dict(self.defaults)))
         object.__setattr__(self, "controllers", MappingProxyType(dict(self.controllers)))
         object.__setattr__(self, "training", MappingProxyType(
             {name: MappingProxyType(dict(values)) for name, values in self.training.items()}))
@@ -119,6 +141,16 @@ class TaskSpec:
     def figure_function(self) -> Callable[..., Any] | None:
         """``figure(result, path) -> path``, or None when the task has no figure."""
         return None if self.figure is None else resolve(self.figure)
+
+    def env_default(self, name: str, fallback: Any) -> Any:
+        """The task's default for env setting ``name`` (one of :data:`ENV_DEFAULT_FIELDS`), else
+        ``fallback``."""
+        return copy.deepcopy(self.defaults.get(name, fallback))
+
+    def default_config(self, **overrides: Any) -> TaskConfig:
+        """The task config with the task's ``defaults`` applied, then ``overrides`` (config fields)."""
+        fields = {k: copy.deepcopy(v) for k, v in self.defaults.items() if k not in ENV_DEFAULT_FIELDS}
+        return self.config(**{**fields, **overrides})
 
     def training_defaults(self, algorithm: str) -> dict[str, Any]:
         """A fresh (deep) copy of the config fields this task sets for recipe ``algorithm``."""
@@ -185,5 +217,6 @@ class SpecView(Mapping[str, V], Generic[V]):
 #: Task name -> (Task class, config dataclass), as before the registry (a live view of it).
 TASKS: Mapping[str, tuple[type[Task], type[TaskConfig]]] = SpecView(lambda spec: (spec.task, spec.config))
 
-__all__ = ["ALGORITHMS", "TASKS", "TASK_SPECS", "TRIM_HOLD", "Metric", "Ref", "SpecView", "TaskSpec",
-           "register_task", "resolve", "task_names", "task_spec", "unregister_task"]
+__all__ = ["ALGORITHMS", "ENV_DEFAULT_FIELDS", "TASKS", "TASK_SPECS", "TRAINING_DECIMATION", "TRIM_HOLD",
+           "Metric", "Ref", "SpecView", "TaskSpec", "register_task", "resolve", "task_names", "task_spec",
+           "unregister_task"]

@@ -153,9 +153,10 @@ class TrajectoryTask(Task):
                 - cfg.w_energy * airspeed_margin_penalty(state["airspeed"], self.safe_airspeed)
                 - cfg.w_smooth * action_rate)
 
-    def terminated(self, state: TensorDictBase) -> torch.Tensor:
+    def termination_checks(self, state: TensorDictBase) -> dict[str, torch.Tensor]:
+        """The shared checks plus "lost": 3D distance to the reference beyond ``lost_distance``."""
         distance = torch.linalg.vector_norm(self.position_error, dim=-1)
-        return super().terminated(state) | (distance > self.config.lost_distance)
+        return {**super().termination_checks(state), "lost": distance > self.config.lost_distance}
 
     def info(self) -> dict[str, torch.Tensor]:
         return {"position_error": torch.linalg.vector_norm(self.position_error, dim=-1),
