@@ -3,8 +3,10 @@ PYTHON ?= python3
 VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
+# Material for MkDocs prints a banner about MkDocs 2.0 on every build; it is not a warning of ours.
+MKDOCS := NO_MKDOCS_2_WARNING=1 $(PY) -m mkdocs
 
-.PHONY: demo test lint install clean
+.PHONY: demo test lint docs install clean
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -18,15 +20,23 @@ $(STAMP): $(PY) pyproject.toml
 
 install: $(STAMP)
 
+# Ruff, the API reference site in strict mode (any warning fails: a broken link, a missing include,
+# a docstring the site cannot render), then the tests.
 test: $(STAMP)
-	$(PY) -m ruff check falcon_rl tests examples benchmarks
+	$(PY) -m ruff check falcon_rl tests examples benchmarks docs
+	$(MKDOCS) build --strict --quiet
 	$(PY) -m pytest -q -p no:cacheprovider
 
 demo: $(STAMP)
 	$(PY) -m falcon_rl.cli demo
 
 lint: $(STAMP)
-	$(PY) -m ruff check falcon_rl tests examples benchmarks
+	$(PY) -m ruff check falcon_rl tests examples benchmarks docs
+
+# The API reference site -> site/index.html (`make test` builds it strictly;
+# `.venv/bin/mkdocs serve` serves it with live reload).
+docs: $(STAMP)
+	$(MKDOCS) build
 
 clean:
-	rm -rf $(VENV) runs
+	rm -rf $(VENV) runs site
