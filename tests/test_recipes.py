@@ -54,7 +54,8 @@ def test_resume_restores_weights_and_rng(tmp_path):
     recipe.train(cfg)
     doc = torch.load(tmp_path / "ppo" / "checkpoint.pt", weights_only=True)
     assert set(doc["modules"]) == {"actor", "critic"} and "optimizer" in doc["optimizers"]
-    assert {"torch", "env", "sim"} <= set(doc["rng"]) and doc["norm"]["count"] > 0
+    assert {"torch", "numpy", "python", "env", "sim"} <= set(doc["rng"]) and doc["norm"]["count"] > 0
+    assert doc["format"] == 2 and isinstance(doc["sha256"], str)
 
 
 @pytest.mark.parametrize("name", ["sac", "td3"])

@@ -2,9 +2,15 @@
 
     falcon-rl train ppo --task altitude --airframe volantex_ranger --out runs/ppo_altitude
     falcon-rl train ppo --task altitude --out runs/ppo_altitude --resume      # continue a killed run
+    falcon-rl train ppo --task altitude --out runs/ppo_altitude --resume-if-present   # job scripts
 
 Writes ``checkpoint.pt`` (resumable), ``policy.pt`` (for ``falcon-rl eval --controller PATH``),
-``policy.ts`` (TorchScript), ``summary.json`` and logs under ``--out``.
+``policy.ts`` (TorchScript), ``summary.json`` and logs under ``--out``. The same flags and ``--seed``
+give bit-identical weights, and a killed run resumed with ``--resume`` ends where the uninterrupted
+run would. ``--resume`` needs ``<out>/checkpoint.pt`` of the same algorithm, task, airframe, networks,
+seed, backend and device (``falcon_rl.recipes.checkpoint.IDENTITY_FIELDS``); a missing, corrupt or
+mismatched checkpoint exits 2 with one line naming it. Bad flags and ``--set`` values (types, ranges,
+an unknown field, a device this machine lacks, an unwritable ``--out``) exit 2 before anything runs.
 """
 
 from __future__ import annotations
@@ -14,7 +20,14 @@ import ast
 import importlib.util
 import math
 
-from ._common import UsageError, emit
+from ._common import (
+    UsageError,
+    check_device,
+    emit,
+    nonnegative_int,
+    output_dir,
+    positive_int,
+)
 
 NAME = "train"
 HELP = "train PPO, SAC or TD3 on a task (checkpoints, policy export, final evaluation)"
@@ -24,17 +37,26 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("algorithm", choices=["ppo", "sac", "td3"])
     parser.add_argument("--task", default="altitude", help="altitude, attitude (or another task)")
     parser.add_argument("--airframe", default="volantex_ranger")
-    parser.add_argument("--envs", type=int, default=None, help="parallel envs (default: the recipe's)")
-    parser.add_argument("--frames", type=int, default=None, help="total env steps (default: the recipe's)")
+    parser.add_argument("--envs", type=positive_int, default=None,
+                        help="parallel envs (default: the recipe's)")
+    parser.add_argument("--frames", type=positive_int, default=None,
+                        help="total env steps (default: the recipe's)")
     parser.add_argument("--device", default="cpu")
-    parser.add_argument("--backend", choices=["torch", "warp"], default="warp")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--backend", choices=["torch", "warp"], default="warp",
+                        help="simulator backend (default warp, the fastest; torch: the reference)")
+    parser.add_argument("--seed", type=nonnegative_int, default=0)
     parser.add_argument("--out", default=None, help="output folder (default runs/<alg>_<task>_<airframe>)")
-    parser.add_argument("--resume", action="store_true", help="continue from <out>/checkpoint.pt")
+    resume = parser.add_mutually_exclusive_group()
+    resume.add_argument("--resume", action="store_const", const=True, default=False,
+                        help="continue from <out>/checkpoint.pt (an error when there is none)")
+    resume.add_argument("--resume-if-present", dest="resume", action="store_const", const="auto",
+                        help="continue from <out>/checkpoint.pt when it exists, else start a new run")
     parser.add_argument("--logger", choices=["csv", "tensorboard", "wandb", "none"], default="csv")
-    parser.add_argument("--eval-every", type=int, default=None, help="frames between evaluations")
-    parser.add_argument("--eval-episodes", type=int, default=None, help="episodes of the final evaluation")
-    parser.add_argument("--threads", type=int, default=None, help="torch CPU threads (default 1)")
+    parser.add_argument("--eval-every", type=nonnegative_int, default=None,
+                        help="frames between evaluations (0: only the final one)")
+    parser.add_argument("--eval-episodes", type=nonnegative_int, default=None,
+                        help="episodes of the final evaluation")
+    parser.add_argument("--threads", type=positive_int, default=None, help="torch CPU threads (default 1)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE",
                         help="override a recipe field (Python literal), e.g. --set batch_size=512 "
@@ -50,38 +72,44 @@ def parse_overrides(items: list[str]) -> dict:
             raise UsageError(f"--set takes FIELD=VALUE, got {item!r}")
         try:
             value = ast.literal_eval(text)
-        except (ValueError, SyntaxError):
+        except (ValueError, SyntaxError, MemoryError, RecursionError):
             value = text
         overrides[name.strip()] = tuple(value) if isinstance(value, list) else value
     return overrides
 
 
 def _config(recipe, args: argparse.Namespace, out: str, overrides: dict):
-    """The recipe's config for the task: its defaults, the flags, then the ``--set`` fields."""
+    """The recipe's config for the task: its defaults, the flags, then the ``--set`` fields, checked
+    (types, ranges, device, a writable output folder) before anything runs."""
+    from ..recipes.checks import check_config
+
     flags = {"airframe": args.airframe, "num_envs": args.envs, "frames": args.frames, "device": args.device,
              "backend": args.backend, "seed": args.seed, "out": out, "resume": args.resume,
              "logger": args.logger, "eval_every": args.eval_every, "final_eval_episodes": args.eval_episodes,
              "threads": args.threads, "progress": not args.no_progress and not args.json}
-    return recipe.make_config(args.task, **{**flags, **overrides})
+    try:
+        cfg = recipe.make_config(args.task, **{**flags, **overrides})
+    except TypeError as exc:  # an unknown --set field
+        raise UsageError(str(exc)) from None
+    try:
+        check_config(cfg)
+    except ValueError as exc:
+        raise UsageError(f"--set {exc}" if str(exc).split()[0] in overrides else str(exc)) from None
+    check_device(cfg.device, "--device")
+    if cfg.out is not None:
+        output_dir(cfg.out, "--out")
+    return cfg
 
 
 def run(args: argparse.Namespace) -> int:
     from ..recipes import algorithm
 
-    for name in ("envs", "frames", "eval_episodes", "threads"):
-        value = getattr(args, name)
-        if value is not None and value < (0 if name == "eval_episodes" else 1):
-            raise UsageError(f"--{name.replace('_', '-')} must be positive, got {value}")
     if args.logger in ("tensorboard", "wandb") and importlib.util.find_spec(args.logger) is None:
         raise UsageError(f"--logger {args.logger} needs the {args.logger} package "
                          f"(pip install {args.logger})")
     recipe = algorithm(args.algorithm)
     out = args.out or f"runs/{args.algorithm}_{args.task}_{args.airframe}"
-    overrides = parse_overrides(args.set)
-    try:
-        cfg = _config(recipe, args, out, overrides)
-    except TypeError as exc:  # an unknown --set field
-        raise UsageError(str(exc)) from exc
+    cfg = _config(recipe, args, out, parse_overrides(args.set))
     summary = recipe.train(cfg)
     summary["config"] = cfg.to_dict()
     lines = [f"{args.algorithm} on {args.task} / {args.airframe}: {summary['frames']:,} frames in "

@@ -3,6 +3,9 @@
 
     path = shipped_policy("altitude", "volantex_ranger")          # PPO by default
     policy = falcon_rl.policies.load_policy(path, env)
+
+A file that cannot be used (unreadable, truncated, corrupt, foreign, or of other sizes than ``env``)
+raises :class:`FileFormatError`, a one-line ValueError naming the file and the reason.
 """
 
 from __future__ import annotations
@@ -11,7 +14,9 @@ from pathlib import Path
 
 from .format import (
     FORMAT,
+    LEGACY_FORMATS,
     DeployedPolicy,
+    FileFormatError,
     PolicyNetwork,
     export_torchscript,
     load_policy,
@@ -37,5 +42,6 @@ def shipped_policy(task: str, airframe: str, algorithm: str = "ppo") -> Path:
     return path
 
 
-__all__ = ["FORMAT", "DeployedPolicy", "PolicyNetwork", "available", "export_torchscript", "load_policy",
-           "policy_document", "read_policy", "save_policy", "shipped_policy"]
+__all__ = ["FORMAT", "LEGACY_FORMATS", "DeployedPolicy", "FileFormatError", "PolicyNetwork", "available",
+           "export_torchscript", "load_policy", "policy_document", "read_policy", "save_policy",
+           "shipped_policy"]

@@ -1,58 +1,113 @@
-"""Atomic, weights-only checkpoints.
+"""Atomic, sealed, weights-only checkpoints.
 
 A checkpoint is one ``torch.save`` of plain containers and tensors (no pickled classes), so it loads
 with ``torch.load(path, weights_only=True)``:
 
-    {"format": 1, "algorithm": str, "config": dict, "counters": dict,
+    {"format": 2, "algorithm": str, "config": dict, "counters": dict,
      "modules": {name: state_dict}, "optimizers": {name: state_dict}, "norm": {stat: tensor},
-     "rng": {"torch": ByteTensor, "env": ByteTensor, "sim": ByteTensor, ...},
-     "replay": {"size": int, "data": {key: tensor [size, ...]}, "writer": {...}}}   (SAC, TD3)
+     "rng": {"torch", "numpy", "python", "env", "sim", ...},
+     "replay": {"size": int, "data": {key: tensor [size, ...]}, "writer": {...}},   (SAC, TD3)
+     "sha256": str}
 
-The replay entry holds the filled part of an off-policy run's replay buffer (nested dicts of tensors)
-and its writer's cursor, so a resumed run samples from the same transitions it would have.
+``rng`` holds every generator a run draws from: torch's global one (CUDA's too; the Collector's
+random actions, the policies' samples, the replay buffer's minibatches and the losses' noise all draw
+from it), numpy's and Python's, and the env's (``random_state()`` of the flight-env interface: its
+generator, the simulator's, the turbulence stream) with those of its transforms that report theirs
+alike. The replay entry holds the filled part of an off-policy run's replay buffer (a copy: its size
+grows with the fill, not with the capacity) and its writer's cursor, so a resumed run samples from
+the same transitions it would have. ``sha256`` is the content checksum of the rest
+(:func:`falcon_rl.policies.format.content_digest`), verified on reading; format 1 (no checksum) is
+read as legacy.
 
 Files are written to ``<path>.tmp`` and moved over ``path`` with ``os.replace`` (atomic on POSIX), so
 a run killed mid-write leaves the previous checkpoint intact and no partial file under ``path``.
+Every unreadable, corrupt, foreign or mismatched checkpoint is a one-line
+:class:`~falcon_rl.policies.format.FileFormatError` naming the file.
 """
 
 from __future__ import annotations
 
+import random
+from collections.abc import Iterator
+from dataclasses import fields
 from pathlib import Path
 
+import numpy as np
 import torch
 from tensordict import TensorDict
+from torchrl.envs import TransformedEnv
 
-from ..policies.format import atomic_save
+from ..policies.format import FileFormatError, atomic_save, read_document, seal, verify_seal
 from ..transforms import flight_env
+from .common import Counters
 
-FORMAT = 1
+FORMAT = 2
+LEGACY_FORMATS = (1,)
+
+#: Config fields a resumed run must share with its checkpoint: the MDP, the networks, the generators.
+IDENTITY_FIELDS = ("task", "airframe", "seed", "backend", "device", "cells", "activation", "critic_cells",
+                   "critic_activation", "normalize_observations", "env_options", "episode_seconds",
+                   "buffer_size")
 
 
-def rng_states(env=None) -> dict[str, torch.Tensor]:
-    """Torch's global RNG state and the env's random state (``random_state()`` of the flight-env
-    interface: its generator, the simulator's, the turbulence stream counter) when given."""
-    states = {"torch": torch.get_rng_state()}
+# ---------------------------------------------------------------------------------------- generators
+def _random_transforms(env) -> Iterator[tuple[str, object]]:
+    """(key, transform) of every transform over ``env`` that reports its generators the way the flight
+    env does (``random_state()`` / ``set_random_state(states)``)."""
+    depth = 0
+    while isinstance(env, TransformedEnv):
+        for i, transform in enumerate(env.transform):
+            if callable(getattr(transform, "random_state", None)) and callable(
+                    getattr(transform, "set_random_state", None)):
+                yield f"transform{depth}.{i}", transform
+        env, depth = env.base_env, depth + 1
+
+
+def rng_states(env=None) -> dict:
+    """The state of every generator a run draws from (see the module docstring)."""
+    keys, pos, has_gauss, gauss = np.random.get_state()[1:]
+    version, words, gauss_next = random.getstate()
+    states = {"torch": torch.get_rng_state(),
+              "numpy": {"keys": torch.from_numpy(keys.astype(np.int64)), "pos": int(pos),
+                        "has_gauss": int(has_gauss), "gauss": float(gauss)},
+              "python": {"version": version, "state": torch.tensor(words, dtype=torch.int64),
+                         "gauss": gauss_next}}
     if torch.cuda.is_available() and torch.cuda.is_initialized():
         states["cuda"] = torch.cuda.get_rng_state()
     if env is not None:
         states.update(flight_env(env, "random_state").random_state())
+        for key, transform in _random_transforms(env):
+            states[key] = transform.random_state()
     return states
 
 
-def set_rng_states(states: dict[str, torch.Tensor], env=None) -> None:
+def set_rng_states(states: dict, env=None) -> None:
+    """Restore what :func:`rng_states` returned."""
     torch.set_rng_state(states["torch"])
     if "cuda" in states and torch.cuda.is_available():
         torch.cuda.set_rng_state(states["cuda"])
-    if env is not None:
-        flight_env(env, "set_random_state").set_random_state(
-            {k: v for k, v in states.items() if k not in ("torch", "cuda")})
+    if "numpy" in states:
+        n = states["numpy"]
+        np.random.set_state(("MT19937", n["keys"].numpy().astype(np.uint32), n["pos"], n["has_gauss"],
+                             n["gauss"]))
+    if "python" in states:
+        p = states["python"]
+        random.setstate((p["version"], tuple(int(w) for w in p["state"].tolist()), p["gauss"]))
+    if env is None:
+        return
+    flight_env(env, "set_random_state").set_random_state(
+        {k: v for k, v in states.items() if k in ("env", "sim", "turbulence")})
+    for key, transform in _random_transforms(env):
+        if key in states:
+            transform.set_random_state(states[key])
 
 
+# ---------------------------------------------------------------------------------------- writing
 def save_checkpoint(path: str | Path, *, algorithm: str, config: dict, counters: dict,
                     modules: dict[str, torch.nn.Module], optimizers: dict[str, torch.optim.Optimizer],
                     norm: dict[str, torch.Tensor], env=None, extra: dict | None = None,
                     replay=None) -> Path:
-    """Write a resumable checkpoint atomically (see the module docstring for the layout);
+    """Write a sealed, resumable checkpoint atomically (see the module docstring for the layout);
     ``replay`` is the run's replay buffer (None for on-policy runs)."""
     doc = {"format": FORMAT, "algorithm": algorithm, "config": config, "counters": counters,
            "modules": {k: m.state_dict() for k, m in modules.items()},
@@ -60,51 +115,154 @@ def save_checkpoint(path: str | Path, *, algorithm: str, config: dict, counters:
            "norm": norm, "rng": rng_states(env), "extra": extra or {}}
     if replay is not None:
         doc["replay"] = replay_state(replay)
-    return atomic_save(doc, path)
+    return atomic_save(seal(doc), path)
 
 
 def replay_state(buffer) -> dict:
-    """The filled part of a TorchRL ``ReplayBuffer`` as plain tensors, and its writer's state."""
+    """The filled part of a TorchRL ``ReplayBuffer`` as plain tensors (a compact copy: slicing the
+    storage alone would save all of it), and its writer's state."""
     size = len(buffer)
-    data = buffer[:size].to("cpu").to_dict() if size else {}
+    data = buffer.storage[:size].to("cpu").clone().to_dict() if size else {}
     return {"size": size, "data": data, "writer": dict(buffer.writer.state_dict())}
 
 
-def load_replay(buffer, state: dict) -> int:
+# ---------------------------------------------------------------------------------------- reading
+def load_checkpoint(path: str | Path, map_location: str | torch.device = "cpu") -> dict:
+    """Read and check a checkpoint: weights-only, its format, checksum and layout; FileFormatError (one
+    line naming the file) for anything that is not a sound falcon-rl checkpoint."""
+    doc = read_document(path, "training checkpoint", map_location)
+    fmt = doc.get("format")
+    if isinstance(fmt, str) and fmt.startswith("falcon-rl-policy"):
+        raise FileFormatError(path, "a policy file, not a training checkpoint (resume reads "
+                                    "<out>/checkpoint.pt)")
+    if fmt not in (FORMAT, *LEGACY_FORMATS):
+        raise FileFormatError(path, f"not a falcon-rl training checkpoint (format {fmt!r})")
+    if fmt == FORMAT:
+        verify_seal(doc, path)
+    layout = {"algorithm": str, "config": dict, "counters": dict, "modules": dict, "optimizers": dict,
+              "norm": dict, "rng": dict}
+    bad = [key for key, kind in layout.items() if not isinstance(doc.get(key), kind)]
+    counters = doc.get("counters") or {}
+    if bad or set(counters) != {f.name for f in fields(Counters)} or not all(
+            type(v) in (int, float) for v in counters.values()) or not isinstance(
+            doc["rng"].get("torch"), torch.Tensor):
+        raise FileFormatError(path, f"incomplete training checkpoint ({', '.join(bad) or 'counters, rng'})")
+    return doc
+
+
+def _plain(value):
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    return value
+
+
+def check_resumable(doc: dict, path: str | Path, algorithm: str, config: dict) -> None:
+    """FileFormatError unless the checkpoint ``doc`` is of ``algorithm`` and shares this run's
+    ``config`` in every :data:`IDENTITY_FIELDS` entry (task, airframe, networks, seed, ...)."""
+    if doc["algorithm"] != algorithm:
+        raise FileFormatError(path, f"checkpoint of a {doc['algorithm']} run, cannot resume it as "
+                                    f"{algorithm}")
+    saved = doc["config"]
+    for name in IDENTITY_FIELDS:
+        if name in config and _plain(saved.get(name)) != _plain(config[name]):
+            raise FileFormatError(path, f"checkpoint has {name}={_plain(saved.get(name))!r}, this run "
+                                        f"{_plain(config[name])!r} (resume with the same settings, or train "
+                                        "into another output folder)")
+
+
+def _shapes(state: dict) -> dict:
+    return {k: tuple(v.shape) if isinstance(v, torch.Tensor) else type(v) for k, v in state.items()}
+
+
+def _check_optimizer(saved: dict, optimizer: torch.optim.Optimizer) -> bool:
+    """Whether an optimizer state dict fits ``optimizer``: its groups' sizes and its per-parameter
+    state tensors' shapes."""
+    groups, params = saved.get("param_groups"), [p for g in optimizer.param_groups for p in g["params"]]
+    if not isinstance(groups, list) or [len(g.get("params", ())) for g in groups] != [
+            len(g["params"]) for g in optimizer.param_groups]:
+        return False
+    for index, state in (saved.get("state") or {}).items():
+        if not (isinstance(index, int) and 0 <= index < len(params) and isinstance(state, dict)):
+            return False
+        for value in state.values():
+            if isinstance(value, torch.Tensor) and value.dim() and value.shape != params[index].shape:
+                return False
+    return True
+
+
+def restore(doc: dict, path: str | Path, modules: dict[str, torch.nn.Module],
+            optimizers: dict[str, torch.optim.Optimizer], norm=None, env=None) -> dict:
+    """Load ``doc`` into the modules, optimisers, normaliser and generators, after checking that every
+    network and optimiser state has this run's shapes (FileFormatError otherwise); returns its counters."""
+    for name, module in modules.items():
+        saved = doc["modules"].get(name)
+        if not isinstance(saved, dict) or _shapes(saved) != _shapes(module.state_dict()):
+            raise FileFormatError(path, f"network {name!r} of the checkpoint has other shapes than "
+                                        "this run's")
+    for name, optimizer in optimizers.items():
+        saved = doc["optimizers"].get(name)
+        if not isinstance(saved, dict) or not _check_optimizer(saved, optimizer):
+            raise FileFormatError(path, f"optimiser {name!r} of the checkpoint does not fit this "
+                                        "run's networks")
+    if norm is not None:
+        dim, shapes = tuple(norm.mean.shape), _shapes(doc["norm"])
+        expected = {"mean": dim, "var": dim, "count": (), "enabled": (), "clip": (), "min_std": ()}
+        if {k: shapes.get(k) for k in expected} != expected:
+            raise FileFormatError(path, "observation normaliser of the checkpoint has another size")
+    try:
+        for name, module in modules.items():
+            module.load_state_dict(doc["modules"][name])
+        for name, optimizer in optimizers.items():
+            optimizer.load_state_dict(doc["optimizers"][name])
+        if norm is not None:
+            norm.load_stats(doc["norm"])
+        set_rng_states(doc["rng"], env)
+    except (KeyError, TypeError, ValueError, RuntimeError, IndexError) as exc:
+        raise FileFormatError(path, f"damaged training checkpoint ({type(exc).__name__} while restoring "
+                                    "it)") from None
+    return doc["counters"]
+
+
+def load_replay(buffer, state: dict, path: str | Path = "checkpoint",
+                shapes: dict[tuple[str, ...], tuple[int, ...]] | None = None) -> int:
     """Refill an empty ``buffer`` from :func:`replay_state`'s output; returns its length.
 
     The transitions go back to the same storage slots (0..size-1, in order) and the writer continues
     from its saved cursor, so a full, wrapped-around buffer overwrites the same oldest entries.
+    ``shapes`` ({nested key: per-transition shape}) checks the saved transitions first.
     """
     if len(buffer):
         raise ValueError("load_replay needs an empty replay buffer")
-    size = int(state["size"])
+    size, data, writer = state.get("size"), state.get("data"), state.get("writer")
+    capacity = buffer.storage.max_size
+    if type(size) is not int or not 0 <= size <= capacity or not isinstance(data, dict) \
+            or not isinstance(writer, dict):
+        raise FileFormatError(path, f"replay buffer entry is damaged or larger than the buffer ({capacity})")
     if size:
-        buffer.extend(TensorDict.from_dict(state["data"], batch_size=[size]))
-    buffer.writer.load_state_dict(state["writer"])
+        flat = TensorDict.from_dict(data, batch_size=[size]) if _batched(data, size) else None
+        found = None if flat is None else {k: tuple(v.shape[1:]) for k, v in flat.items(True, True)}
+        if flat is None or (shapes is not None and found != {_key(k): v for k, v in shapes.items()}):
+            raise FileFormatError(path, "replay buffer transitions do not fit this run's env")
+    cursor = writer.get("_cursor", 0)
+    if type(cursor) is not int or not 0 <= cursor < max(capacity, 1):
+        raise FileFormatError(path, "replay buffer cursor is damaged")
+    if size:
+        buffer.extend(flat)
+    buffer.writer.load_state_dict(writer)
     return len(buffer)
 
 
-def load_checkpoint(path: str | Path, map_location: str | torch.device = "cpu") -> dict:
-    """Read a checkpoint with ``weights_only=True`` (plain containers and tensors only)."""
-    doc = torch.load(path, map_location=map_location, weights_only=True)
-    if doc.get("format") != FORMAT:
-        raise ValueError(f"{path}: not a falcon-rl checkpoint (format {doc.get('format')!r})")
-    return doc
+def _key(key: tuple[str, ...]):
+    return key[0] if len(key) == 1 else key
 
 
-def restore(doc: dict, modules: dict[str, torch.nn.Module], optimizers: dict[str, torch.optim.Optimizer],
-            norm=None, env=None) -> dict:
-    """Load ``doc`` into the modules, optimisers, normaliser and RNGs; returns its counters."""
-    for name, module in modules.items():
-        module.load_state_dict(doc["modules"][name])
-    for name, optimizer in optimizers.items():
-        optimizer.load_state_dict(doc["optimizers"][name])
-    if norm is not None:
-        norm.load_stats(doc["norm"])
-    set_rng_states(doc["rng"], env)
-    return doc["counters"]
+def _batched(data: dict, size: int) -> bool:
+    """Whether every tensor in the nested ``data`` has ``size`` rows."""
+    return all(_batched(v, size) if isinstance(v, dict) else isinstance(v, torch.Tensor) and v.dim()
+               and v.shape[0] == size for v in data.values())
 
 
-__all__ = ["atomic_save", "load_checkpoint", "load_replay", "replay_state", "restore", "rng_states",
-           "save_checkpoint", "set_rng_states"]
+__all__ = ["FORMAT", "IDENTITY_FIELDS", "LEGACY_FORMATS", "atomic_save", "check_resumable", "load_checkpoint",
+           "load_replay", "replay_state", "restore", "rng_states", "save_checkpoint", "set_rng_states"]

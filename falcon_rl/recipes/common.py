@@ -17,9 +17,11 @@ from __future__ import annotations
 import copy
 import itertools
 import math
+import random
 import time
 from dataclasses import asdict, dataclass, field, fields
 
+import numpy as np
 import torch
 from torch import nn
 from torchrl.envs import Compose, ExcludeTransform, RewardSum, TransformedEnv
@@ -64,11 +66,14 @@ class TrainConfig:
     env_options: dict = field(default_factory=dict)
     #: Output folder (checkpoint.pt, policy.pt, policy.ts, logs); None: no files.
     out: str | None = "runs/train"
-    #: Continue from ``out``/checkpoint.pt when it exists.
-    resume: bool = False
+    #: Continue from ``out``/checkpoint.pt: True needs it (a missing one is an error), "auto" resumes
+    #: when it exists and starts a new run otherwise, False starts a new run.
+    resume: bool | str = False
     #: "csv", "tensorboard", "wandb" (offline unless WANDB_MODE says otherwise) or "none".
     logger: str = "csv"
-    #: Write the checkpoint every this many frames (and at the end).
+    #: Write the checkpoint every this many frames (and at the end). A checkpoint closes a segment of
+    #: collection: the envs restart (reset, episodes staggered) after it, whether the run goes on or is
+    #: resumed from it, so that a resumed run equals an uninterrupted one bit for bit.
     checkpoint_every: int = 2_000_000
     #: Evaluate on a short protocol every this many frames (0: only at the end).
     eval_every: int = 0
@@ -124,6 +129,14 @@ OFF_POLICY_DEFAULTS: dict = {
 #: Entries of a transition kept in the replay buffer.
 TRANSITION = ("observation", "action", ("next", "observation"), ("next", "reward"), ("next", "done"),
               ("next", "terminated"))
+
+
+def transition_shapes(env: TransformedEnv) -> dict[tuple[str, ...], tuple[int, ...]]:
+    """{key: shape of one transition's entry} of :data:`TRANSITION` for ``env`` (D, A: its sizes)."""
+    obs_dim, act_dim = observation_dims(env)
+    shapes = {"observation": (obs_dim,), "action": (act_dim,)}
+    return {(k,) if isinstance(k, str) else k: shapes.get(k if isinstance(k, str) else k[1], (1,))
+            for k in TRANSITION}
 
 
 def config_from(cls: type, task: str, algorithm: str, defaults: dict | None = None,
@@ -274,8 +287,11 @@ def make_train_env(cfg: TrainConfig, num_envs: int | None = None, seed_offset: i
     options = dict(cfg.env_options)
     if cfg.episode_seconds is not None:
         options["episode_seconds"] = cfg.episode_seconds
-    base = make_env(cfg.task, cfg.airframe, num_envs=num_envs or cfg.num_envs, backend=cfg.backend,
-                    device=cfg.device, seed=cfg.seed + seed_offset, **options)
+    try:
+        base = make_env(cfg.task, cfg.airframe, num_envs=num_envs or cfg.num_envs, backend=cfg.backend,
+                        device=cfg.device, seed=cfg.seed + seed_offset, **options)
+    except TypeError as exc:  # an unknown env option
+        raise ValueError(f"env_options: {exc}") from None
     unused = [key for key in base.observation_spec.keys(True, True) if key[0] in ("state", "task")]
     return TransformedEnv(base, Compose(ExcludeTransform(*unused), RewardSum()))
 
@@ -349,7 +365,15 @@ def set_threads(cfg: TrainConfig) -> None:
         torch.set_num_threads(cfg.threads)
 
 
+def seed_everything(seed: int) -> None:
+    """Seed torch (CPU and CUDA), numpy and Python's ``random`` with ``seed``: done before a recipe
+    builds anything, so that the networks' initial weights follow the seed."""
+    torch.manual_seed(seed)
+    np.random.seed(seed % 2**32)
+    random.seed(seed)
+
+
 __all__ = ["ACTIVATIONS", "OFF_POLICY_DEFAULTS", "TRANSITION", "Counters",
            "EpisodeStats", "OffPolicyConfig", "PolicyNet", "QNet", "RunningNorm", "TrainConfig", "ValueNet",
            "config_from", "make_actor_net", "make_train_env", "mlp", "observation_dims",
-           "set_threads", "stagger_episodes", "trim_action"]
+           "seed_everything", "set_threads", "stagger_episodes", "transition_shapes", "trim_action"]

@@ -1,12 +1,16 @@
 """Evaluation hook: score the current actor on the protocol its task's ``TaskSpec`` names (e.g.
 altitude: survival, acquisition, RMSE, settling time, overshoot; attitude: bank / climb-rate /
 airspeed RMSE per maneuver); a task without a protocol is not scored (None).
+
+An evaluation leaves torch's global generator as it found it, so that evaluating during training does
+not change what the training draws.
 """
 
 from __future__ import annotations
 
 import math
 
+import torch
 from tensordict.nn import TensorDictModule
 
 from ..envs import task_spec
@@ -35,8 +39,11 @@ def evaluate(net: PolicyNet, cfg: TrainConfig, label: str, episodes: int, **opti
         return TensorDictModule(policy.to(env.device), in_keys=["observation"], out_keys=["action"])
 
     protocol = spec.protocol_function()
-    return protocol(cfg.airframe, label, factory, episodes=episodes, seed=cfg.seed + EVAL_SEED,
-                    backend=cfg.backend, device=cfg.device, episode_seconds=cfg.eval_seconds, **options)
+    device = torch.device(cfg.device)
+    cuda = [device.index or 0] if device.type == "cuda" else []
+    with torch.random.fork_rng(devices=cuda):
+        return protocol(cfg.airframe, label, factory, episodes=episodes, seed=cfg.seed + EVAL_SEED,
+                        backend=cfg.backend, device=cfg.device, episode_seconds=cfg.eval_seconds, **options)
 
 
 def eval_scalars(result: ProtocolResult | None) -> dict[str, float]:

@@ -10,20 +10,11 @@ from collections.abc import Iterator
 
 from tensordict import TensorDictBase
 from tensordict.nn import TensorDictModuleBase
-from torchrl.collectors import Collector
 from torchrl.data import LazyTensorStorage, ReplayBuffer
 from torchrl.envs import TransformedEnv
 from torchrl.modules import ValueOperator
 
-from .common import (
-    TRANSITION,
-    Counters,
-    OffPolicyConfig,
-    QNet,
-    RunningNorm,
-    observation_dims,
-    stagger_episodes,
-)
+from .common import TRANSITION, OffPolicyConfig, QNet, RunningNorm, observation_dims
 from .runner import TrainingRun
 
 
@@ -41,29 +32,19 @@ def make_replay_buffer(cfg: OffPolicyConfig) -> ReplayBuffer:
                         batch_size=cfg.batch_size)
 
 
-def stored_batches(cfg: OffPolicyConfig, env: TransformedEnv, policy: TensorDictModuleBase,
-                   run: TrainingRun, counters: Counters, buffer: ReplayBuffer, norm: RunningNorm
-                   ) -> Iterator[tuple[TensorDictBase, bool]]:
-    """Collect the remaining frames in batches of [num_envs, rollout_steps]; yield each batch after
-    scaling its reward, storing its transitions and updating the normaliser, with a flag that says
-    whether the buffer holds enough to learn from (random actions first on a fresh run; a resumed
-    run has its buffer back and learns at once)."""
-    batch_frames = cfg.num_envs * cfg.rollout_steps
-    iterations = -(-run.remaining_frames() // batch_frames)
-    fresh = counters.frames == 0
-    learn_after = cfg.init_random_frames if fresh else cfg.batch_size
-    collector = Collector(env, policy, frames_per_batch=batch_frames, total_frames=iterations * batch_frames,
-                          init_random_frames=cfg.init_random_frames if fresh else 0, device=cfg.device,
-                          trust_policy=True, auto_register_policy_transforms=False)
-    stagger_episodes(env, cfg.seed + counters.iterations)
-    try:
-        for batch in collector:
-            batch["next", "reward"] = batch["next", "reward"] * cfg.reward_scale
-            buffer.extend(batch.select(*TRANSITION).reshape(-1))
-            norm.update(batch["observation"])
-            yield batch, len(buffer) >= learn_after
-    finally:
-        collector.shutdown()
+def stored_batches(cfg: OffPolicyConfig, policy: TensorDictModuleBase, run: TrainingRun,
+                   buffer: ReplayBuffer, norm: RunningNorm) -> Iterator[tuple[TensorDictBase, bool]]:
+    """Collect the remaining frames in batches of [num_envs, rollout_steps] (``run.batches``: uniform
+    random actions for the run's first ``init_random_frames``); yield each batch after scaling its
+    reward, storing its transitions and updating the normaliser, with a flag that says whether the
+    buffer holds enough to learn from (``init_random_frames`` transitions, at least a minibatch; a
+    resumed run has its buffer back, so it decides as the uninterrupted run would)."""
+    learn_after = max(cfg.batch_size, min(cfg.init_random_frames, cfg.buffer_size))
+    for batch in run.batches(policy, cfg.num_envs * cfg.rollout_steps, cfg.init_random_frames):
+        batch["next", "reward"] = batch["next", "reward"] * cfg.reward_scale
+        buffer.extend(batch.select(*TRANSITION).reshape(-1))
+        norm.update(batch["observation"])
+        yield batch, len(buffer) >= learn_after
 
 
 __all__ = ["make_critic", "make_replay_buffer", "stored_batches"]

@@ -16,7 +16,6 @@ from dataclasses import dataclass
 
 import torch
 from tensordict.nn import TensorDictModule
-from torchrl.collectors import Collector
 from torchrl.modules import ProbabilisticActor, TanhNormal, ValueOperator
 from torchrl.objectives import ClipPPOLoss
 from torchrl.objectives.value import GAE
@@ -28,9 +27,8 @@ from .common import (
     make_actor_net,
     make_train_env,
     observation_dims,
-    stagger_episodes,
 )
-from .runner import TrainingRun
+from .runner import TrainingRun, prepare
 
 
 @dataclass
@@ -69,6 +67,7 @@ def make_config(task: str = "altitude", **overrides) -> PPOConfig:
 
 def train(cfg: PPOConfig) -> dict:
     """Train PPO as configured; returns the run summary (and writes files under ``cfg.out``)."""
+    doc = prepare("ppo", cfg)  # before anything is built: the seed decides the initial weights
     env = make_train_env(cfg)
     obs_dim, _ = observation_dims(env)
     actor_net = make_actor_net(cfg, env, scale="param", init_log_std=cfg.init_log_std)
@@ -85,14 +84,8 @@ def train(cfg: PPOConfig) -> dict:
 
     run = TrainingRun("ppo", cfg, env, actor_net, {"actor": actor_net, "critic": critic_net},
                       {"optimizer": optimizer})
-    counters = run.start()
-    batch_frames = cfg.num_envs * cfg.rollout_steps
-    iterations = -(-run.remaining_frames() // batch_frames)
-    collector = Collector(env, actor, frames_per_batch=batch_frames, total_frames=iterations * batch_frames,
-                          device=cfg.device, trust_policy=True,
-                          auto_register_policy_transforms=False)
-    stagger_episodes(env, cfg.seed + counters.iterations)
-    for batch in collector:
+    counters = run.start(doc)
+    for batch in run.batches(actor, cfg.num_envs * cfg.rollout_steps):
         if cfg.anneal_lr:
             optimizer.param_groups[0]["lr"] = cfg.lr * max(1.0 - counters.frames / cfg.frames, 0.05)
         batch["next", "reward"] = batch["next", "reward"] * cfg.reward_scale
@@ -115,7 +108,6 @@ def train(cfg: PPOConfig) -> dict:
                                 "loss/entropy": float(out["entropy"]),
                                 "train/action_std": float(actor_net.log_std.detach().exp().mean()),
                                 "train/lr": optimizer.param_groups[0]["lr"]})
-    collector.shutdown()
     return run.finish()
 
 

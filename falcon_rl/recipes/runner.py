@@ -1,34 +1,87 @@
-"""The bookkeeping around a recipe's loop: resume, counters, logs, progress bar, periodic
-checkpoints and evaluations, and the final policy export.
+"""The bookkeeping around a recipe's loop: seeding, resume, collection in segments, counters, logs,
+progress bar, periodic checkpoints and evaluations, and the final policy export.
 
+    doc = prepare("ppo", cfg)                      # checks, threads, seeds; the checkpoint to resume
+    env, nets, optimizers = ...                    # built after seeding: weights follow cfg.seed
     run = TrainingRun("ppo", cfg, env, actor_net, modules, optimizers)   # replay=buffer (SAC, TD3)
-    run.start()                                    # seeds, or restores a checkpoint with --resume
-    for batch in collector:                        # collector of run.remaining_frames()
+    run.start(doc)                                 # restores the checkpoint when resuming
+    for batch in run.batches(policy, batch_frames):
         ...learn...
         run.after_batch(batch, {"loss/actor": ...})
     summary = run.finish()                         # checkpoint, policy.pt, policy.ts, final evaluation
+
+Reproducibility: the same config gives bit-identical weights (same machine, versions and threads),
+and a run killed and resumed from its last checkpoint ends with the weights of an uninterrupted one:
+collection runs in segments that end where a checkpoint falls due, and every segment starts a fresh
+Collector on envs reset and staggered from the counters, from the generator states the checkpoint
+holds.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import json
+import os
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import torch
+from tensordict import TensorDictBase
+from torchrl.collectors import Collector
 
-from ..policies import export_torchscript, save_policy
-from .checkpoint import load_checkpoint, load_replay, restore, save_checkpoint
-from .common import Counters, EpisodeStats, PolicyNet, TrainConfig, set_threads
+from ..policies import FileFormatError, export_torchscript, save_policy
+from .checkpoint import check_resumable, load_checkpoint, load_replay, restore, save_checkpoint
+from .checks import check_config
+from .common import (
+    Counters,
+    EpisodeStats,
+    PolicyNet,
+    TrainConfig,
+    seed_everything,
+    set_threads,
+    stagger_episodes,
+    transition_shapes,
+)
 from .evaluate import eval_scalars, evaluate
 from .logging import Progress, log_scalars, make_logger
 
+#: Files a run writes under ``out`` (each through ``<name>.tmp``).
+OUTPUT_FILES = ("checkpoint.pt", "policy.pt", "policy.ts", "summary.json")
+
+
+def prepare(algorithm: str, cfg: TrainConfig) -> dict | None:
+    """Everything before a recipe builds anything: check ``cfg``, set the torch threads, seed every
+    generator with ``cfg.seed``, remove temporary files a killed run left under ``cfg.out``, and read
+    the checkpoint to resume, checked against this run (None for a new run). Without a checkpoint,
+    ``resume=True`` is an error and ``resume="auto"`` starts a new run."""
+    check_config(cfg)
+    set_threads(cfg)
+    seed_everything(cfg.seed)
+    if cfg.out is None:
+        if cfg.resume is True:
+            raise ValueError("resume needs an output folder (out) holding checkpoint.pt")
+        return None
+    out = Path(cfg.out)
+    for name in OUTPUT_FILES:
+        (out / f"{name}.tmp").unlink(missing_ok=True)
+    path = out / "checkpoint.pt"
+    if not cfg.resume:
+        return None
+    if not os.path.lexists(path):
+        if cfg.resume == "auto":
+            return None
+        raise FileFormatError(path, "no checkpoint to resume (drop --resume to start a new run, or use "
+                                    "--resume-if-present)")
+    doc = load_checkpoint(path)  # on the CPU: generator states stay there; loading moves the rest
+    check_resumable(doc, path, algorithm, cfg.to_dict())
+    return doc
+
 
 class TrainingRun:
-    """Counters, logs, checkpoints and evaluations of one training run (see the module docstring).
-
-    ``replay``: the off-policy run's replay buffer, saved in every checkpoint and refilled on resume.
+    """Counters, collection, logs, checkpoints and evaluations of one training run (see the module
+    docstring). ``replay``: the off-policy run's replay buffer, saved in every checkpoint and refilled
+    on resume.
     """
 
     def __init__(self, algorithm: str, cfg: TrainConfig, env, actor: PolicyNet,
@@ -47,17 +100,17 @@ class TrainingRun:
     def checkpoint_path(self) -> Path | None:
         return None if self.out is None else self.out / "checkpoint.pt"
 
-    def start(self) -> Counters:
-        """Seed torch, or restore everything from ``out``/checkpoint.pt when resuming."""
-        set_threads(self.cfg)
-        torch.manual_seed(self.cfg.seed)
-        path = self.checkpoint_path
-        if self.cfg.resume and path is not None and path.exists():
-            doc = load_checkpoint(path, self.cfg.device)
-            counters = restore(doc, self.modules, self.optimizers, self.actor.norm, self.env)
+    def start(self, doc: dict | None = None) -> Counters:
+        """Restore everything from the checkpoint ``doc`` (from :func:`prepare`) when resuming; open
+        the logs and the progress bar."""
+        if doc is not None:
+            path = self.checkpoint_path or "checkpoint"
+            counters = restore(doc, path, self.modules, self.optimizers, self.actor.norm, self.env)
             self.counters = Counters(**counters)
-            if self.replay is not None and "replay" in doc:
-                load_replay(self.replay, doc["replay"])
+            if self.replay is not None:
+                if "replay" not in doc:
+                    raise FileFormatError(path, "checkpoint holds no replay buffer")
+                load_replay(self.replay, doc["replay"], path, transition_shapes(self.env))
         self.logger = make_logger(self.cfg.logger, self.out, self.name, self.cfg.to_dict())
         self.stats = EpisodeStats(frames_at_start=self.counters.frames)
         self.progress = Progress(self.cfg.frames, self.counters.frames, self.name, self.cfg.progress)
@@ -67,11 +120,35 @@ class TrainingRun:
     def remaining_frames(self) -> int:
         return max(self.cfg.frames - self.counters.frames, 0)
 
+    def segment_frames(self, batch_frames: int) -> int:
+        """Frames of the next collection segment: whole batches up to the next checkpoint or the end."""
+        c, cfg = self.counters, self.cfg
+        if self.remaining_frames() == 0:
+            return 0
+        until_checkpoint = max(cfg.checkpoint_every - (c.frames - c.last_checkpoint_frames), 1)
+        return -(-min(self.remaining_frames(), until_checkpoint) // batch_frames) * batch_frames
+
+    def batches(self, policy, batch_frames: int, random_frames: int = 0) -> Iterator[TensorDictBase]:
+        """Batches [num_envs, rollout_steps] of ``policy`` until ``cfg.frames``, segment by segment:
+        each a fresh Collector on the envs (reset, then staggered with ``seed + iterations``), uniform
+        random actions while fewer than ``random_frames`` frames were collected in the whole run."""
+        while total := self.segment_frames(batch_frames):
+            collector = Collector(self.env, policy, frames_per_batch=batch_frames, total_frames=total,
+                                  init_random_frames=max(random_frames - self.counters.frames, 0),
+                                  device=self.cfg.device, trust_policy=True,
+                                  auto_register_policy_transforms=False)
+            stagger_episodes(self.env, self.cfg.seed + self.counters.iterations)
+            try:
+                yield from collector
+            finally:
+                collector.shutdown()
+
     def save(self) -> Path | None:
+        """Mark a checkpoint at the current frames and write it (when the run has an ``out``)."""
+        self.counters.last_checkpoint_frames = self.counters.frames
         if self.checkpoint_path is None:
             return None
         self.counters.wall_seconds = time.perf_counter() - self._t0
-        self.counters.last_checkpoint_frames = self.counters.frames
         return save_checkpoint(self.checkpoint_path, algorithm=self.algorithm, config=self.cfg.to_dict(),
                                counters=dataclasses.asdict(self.counters), modules=self.modules,
                                optimizers=self.optimizers, norm=self.actor.norm.stats(), env=self.env,
@@ -117,8 +194,9 @@ class TrainingRun:
                    "updates": self.counters.updates, "episodes": self.counters.episodes,
                    "wall_seconds": wall, "env_steps_per_s": rate,
                    "train_return": self.stats.mean_return, "train_survival": self.stats.survival}
+        checkpoint = self.save()
         if self.out is not None:
-            summary["checkpoint"] = str(self.save())
+            summary["checkpoint"] = str(checkpoint)
             policy = save_policy(self.out / "policy.pt", self.actor, self.meta())
             summary["policy"] = str(policy)
             summary["torchscript"] = str(export_torchscript(self.out / "policy.ts", policy))
@@ -129,8 +207,10 @@ class TrainingRun:
             summary["eval"] = None if self.final_eval is None else dict(self.final_eval.summary)
             summary["eval_episodes"] = self.cfg.final_eval_episodes
         if self.out is not None:
-            (self.out / "summary.json").write_text(json.dumps(summary, indent=2, default=str))
+            tmp = self.out / "summary.json.tmp"
+            tmp.write_text(json.dumps(summary, indent=2, default=str))
+            tmp.replace(self.out / "summary.json")
         return summary
 
 
-__all__ = ["TrainingRun"]
+__all__ = ["OUTPUT_FILES", "TrainingRun", "prepare"]

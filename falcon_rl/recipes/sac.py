@@ -21,7 +21,7 @@ from torchrl.objectives import SACLoss, SoftUpdate
 
 from .common import OFF_POLICY_DEFAULTS, OffPolicyConfig, config_from, make_actor_net, make_train_env
 from .off_policy import make_critic, make_replay_buffer, stored_batches
-from .runner import TrainingRun
+from .runner import TrainingRun, prepare
 
 
 @dataclass
@@ -43,6 +43,7 @@ def make_config(task: str = "altitude", **overrides) -> SACConfig:
 
 def train(cfg: SACConfig) -> dict:
     """Train SAC as configured; returns the run summary (and writes files under ``cfg.out``)."""
+    doc = prepare("sac", cfg)  # before anything is built: the seed decides the initial weights
     env = make_train_env(cfg)
     actor_net = make_actor_net(cfg, env, scale="head")
     norm = actor_net.norm
@@ -59,9 +60,9 @@ def train(cfg: SACConfig) -> dict:
 
     run = TrainingRun("sac", cfg, env, actor_net, {"actor": actor_net, "loss": loss}, optimizers,
                       replay=buffer)
-    counters = run.start()
+    counters = run.start(doc)
     scalars: dict[str, float] = {}
-    for batch, ready in stored_batches(cfg, env, actor, run, counters, buffer, norm):
+    for batch, ready in stored_batches(cfg, actor, run, buffer, norm):
         if ready:
             for _ in range(cfg.updates_per_batch):
                 out = loss(buffer.sample())

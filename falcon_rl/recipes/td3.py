@@ -23,7 +23,7 @@ from torchrl.objectives import SoftUpdate, TD3Loss
 
 from .common import OFF_POLICY_DEFAULTS, OffPolicyConfig, config_from, make_actor_net, make_train_env
 from .off_policy import make_critic, make_replay_buffer, stored_batches
-from .runner import TrainingRun
+from .runner import TrainingRun, prepare
 
 
 @dataclass
@@ -50,6 +50,7 @@ def make_config(task: str = "altitude", **overrides) -> TD3Config:
 
 def train(cfg: TD3Config) -> dict:
     """Train TD3 as configured; returns the run summary (and writes files under ``cfg.out``)."""
+    doc = prepare("td3", cfg)  # before anything is built: the seed decides the initial weights
     env = make_train_env(cfg)
     actor_net = make_actor_net(cfg, env, scale=None)
     norm = actor_net.norm
@@ -68,9 +69,9 @@ def train(cfg: TD3Config) -> dict:
 
     run = TrainingRun("td3", cfg, env, actor_net, {"actor": actor_net, "loss": loss}, optimizers,
                       replay=buffer)
-    counters = run.start()
+    counters = run.start(doc)
     scalars: dict[str, float] = {}
-    for batch, ready in stored_batches(cfg, env, explore, run, counters, buffer, norm):
+    for batch, ready in stored_batches(cfg, explore, run, buffer, norm):
         if ready:
             for _ in range(cfg.updates_per_batch):
                 counters.updates += 1
