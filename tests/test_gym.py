@@ -1,4 +1,5 @@
-"""The Gymnasium wrapper: registration, env_checker, and a short Stable-Baselines3 PPO run."""
+"""The single-aircraft Gymnasium wrapper: registration, env_checker, horizon and TimeLimit, seeding,
+the action contract, and a short Stable-Baselines3 PPO run."""
 
 from __future__ import annotations
 
@@ -8,18 +9,27 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import falcon_rl  # noqa: F401  (registers falcon_rl/<Task>-v0)
-from falcon_rl.envs.gym import GYM_IDS, CoreAircraftEnv
+from falcon_rl.envs.gym import GYM_IDS, VECTOR_ENTRY_POINT, CoreAircraftEnv
+
+#: Five env steps per episode (10 ms control).
+SHORT = {"decimation": 1, "episode_seconds": 0.05}
 
 
 @pytest.mark.parametrize("env_id", sorted(GYM_IDS.values()))
-def test_registered_envs_pass_check_env(env_id: str) -> None:
+def test_registered_envs_pass_check_env_and_time_limit_is_the_horizon(env_id: str) -> None:
     env = gym.make(env_id, airframe="volantex_ranger")
     check_env(env.unwrapped, skip_render_check=True)
+    spec = gym.spec(env_id)
+    assert spec.vector_entry_point == VECTOR_ENTRY_POINT
+    assert isinstance(env, gym.wrappers.TimeLimit)
+    assert spec.max_episode_steps == env.get_wrapper_attr("_max_episode_steps")
+    assert spec.max_episode_steps == env.unwrapped.env.max_episode_steps  # the env's own horizon
 
 
 def test_core_aircraft_env_spaces_and_step() -> None:
-    env = CoreAircraftEnv("altitude", "navion", episode_seconds=0.05)
+    env = CoreAircraftEnv("altitude", "navion", **SHORT)
     assert env.observation_space.shape == (11,) and env.action_space.shape == (2,)
+    assert env.env.config.backend == "warp"  # the default backend
     obs, info = env.reset(seed=3)
     assert obs.dtype == np.float32 and env.observation_space.contains(obs)
     assert 12.0 <= abs(info["initial_altitude"] - info["target_altitude"]) <= 18.0
@@ -28,8 +38,64 @@ def test_core_aircraft_env_spaces_and_step() -> None:
         assert isinstance(reward, float) and not terminated
         assert truncated == (step == 4)
     again, _ = env.reset(seed=3)
-    first, _ = CoreAircraftEnv("altitude", "navion").reset(seed=3)
+    first, _ = CoreAircraftEnv("altitude", "navion", **SHORT).reset(seed=3)
     np.testing.assert_array_equal(again, first)
+
+
+def _truncation_steps(env: gym.Env, episodes: int = 2) -> list[int]:
+    """Steps at which each of ``episodes`` episodes was truncated (zero action, no termination)."""
+    ends = []
+    for _ in range(episodes):
+        env.reset(seed=0)
+        for step in range(1, 50):
+            _, _, terminated, truncated, _ = env.step(np.zeros(2, np.float32))
+            assert not terminated
+            if truncated:
+                ends.append(step)
+                break
+    return ends
+
+
+def test_time_limit_and_env_horizon_end_the_episode_at_the_smaller() -> None:
+    assert _truncation_steps(gym.make("falcon_rl/Altitude-v0", **SHORT)) == [5, 5]  # env horizon 5 < 600
+    assert _truncation_steps(gym.make("falcon_rl/Altitude-v0", max_episode_steps=3, **SHORT)) == [3, 3]
+
+
+def test_seed_none_is_fresh_entropy_and_a_seed_is_reproducible() -> None:
+    first, second = CoreAircraftEnv("altitude"), CoreAircraftEnv("altitude")
+    assert first.build_seed != second.build_seed
+    assert first.reset()[1]["initial_altitude"] != second.reset()[1]["initial_altitude"]
+    actions = [np.array([0.1 * k, -0.05 * k], np.float32) for k in range(4)]
+    runs = []
+    for env in (first, second):
+        obs, _ = env.reset(seed=21)
+        runs.append([obs] + [env.step(action)[0] for action in actions])
+    np.testing.assert_array_equal(np.stack(runs[0]), np.stack(runs[1]))
+
+
+def test_seed_reseeds_the_robustness_transforms() -> None:
+    options = {"sensors": "mild", "obs_delay_ms": (0.0, 100.0), "randomize": True}
+    runs = []
+    for build_seed in (1, 2):
+        env = CoreAircraftEnv("altitude", "volantex_ranger", seed=build_seed, **options)
+        obs, _ = env.reset(seed=9)
+        runs.append([obs] + [env.step(np.full(2, 0.1, np.float32))[0] for _ in range(3)])
+    np.testing.assert_array_equal(np.stack(runs[0]), np.stack(runs[1]))
+
+
+@pytest.mark.parametrize("action", [np.zeros(1, np.float32), np.zeros((1, 2), np.float32),
+                                    np.zeros(3, np.float32), np.zeros(2, bool), np.zeros(2, np.complex64),
+                                    np.zeros(2, np.int64), np.array(["a", "b"]), [None, None]],
+                         ids=["one-column", "batched", "three", "bool", "complex", "int", "str", "object"])
+def test_wrong_actions_are_refused_before_anything_moves(action: object) -> None:
+    env, twin = CoreAircraftEnv("altitude", seed=0), CoreAircraftEnv("altitude", seed=0)
+    env.reset(seed=4)
+    twin.reset(seed=4)
+    with pytest.raises(ValueError, match="action") as refused:
+        env.step(action)
+    assert "\n" not in str(refused.value)
+    good = np.array([0.3, -0.2], np.float32)
+    np.testing.assert_array_equal(env.step(good)[0], twin.step(good)[0])
 
 
 @pytest.mark.slow

@@ -4,70 +4,179 @@
     import falcon_rl  # registers falcon_rl/<Task>-v0
     env = gym.make("falcon_rl/Altitude-v0", airframe="volantex_ranger")
     obs, info = env.reset(seed=0)
+    envs = gym.make_vec("falcon_rl/Altitude-v0", num_envs=256, vectorization_mode="vector_entry_point")
 
 Registered ids: each task's ``TaskSpec.gym_id`` (falcon_rl/Altitude-v0, falcon_rl/Attitude-v0,
 falcon_rl/ClimbDescend-v0, falcon_rl/PathFollowing-v0, falcon_rl/Trajectory-v0, and any task registered
-later once ``register_gym_envs()`` runs again). Keyword arguments are those of
-:func:`falcon_rl.envs.make_env` (airframe, backend, device and task or env options).
-``info`` carries the task's references and errors (("task", ...) keys) as floats or arrays.
+later once ``register_gym_envs()`` runs again), each with a ``vector_entry_point`` (one batched
+simulator, :class:`falcon_rl.envs.gym_vector.FalconVectorEnv`) and ``max_episode_steps`` = the task's
+default horizon (episode_seconds / control period of the default configs). Keyword arguments are
+those of :func:`falcon_rl.envs.make_env` (airframe, backend, device, seed and task or env options);
+the backend defaults to "warp".
+
+Horizon: the env truncates at its own horizon (episode_seconds / (dt x decimation)) and
+``gymnasium.make`` adds ``TimeLimit(max_episode_steps)``; both count from the same reset, so with the
+default options they truncate at the same step, and otherwise the episode ends at the smaller of the
+two (``make_vec`` applies the same rule). Options that lengthen the horizon (episode_seconds, dt,
+decimation) therefore need ``max_episode_steps`` as well (or ``max_episode_steps=-1`` in ``make``).
+
+Seeding: ``seed=None`` (the default) draws fresh OS entropy when the env is built, so the first
+``reset()`` without a seed differs run to run; ``reset(seed=s)`` reseeds the env, the simulator and
+the robustness transforms, so the same ``s`` gives the same episodes. Actions follow the action
+contract (:func:`falcon_rl.transforms.action_check.check_action`): shape [A] exactly, a real float
+dtype; anything else raises a one-line ValueError before the env moves. ``info`` carries the task's
+references and errors (("task", ...) keys) and the env's ``termination_reason`` (an index into
+``TERMINATION_REASONS``) as numbers or arrays.
 """
 
 from __future__ import annotations
 
+import secrets
 from typing import Any
 
 import gymnasium
 import numpy as np
 import torch
 from gymnasium import spaces
-from tensordict import TensorDict
+from tensordict import TensorDict, TensorDictBase
+from torchrl.envs import EnvBase, TransformedEnv
 
-from .tasks.registry import TASK_SPECS, SpecView
+from ..transforms.action_check import check_action
+from .tasks.registry import TASK_SPECS, SpecView, task_spec
 
 #: Task name -> Gymnasium id (a live, read-only view of the task registry).
 GYM_IDS: SpecView[str] = SpecView(lambda spec: spec.gym_id)
 
+#: Simulator backend of the Gymnasium and Stable-Baselines3 envs unless one is given.
+DEFAULT_BACKEND: str = "warp"
+
+#: Entry points registered for every task.
+ENTRY_POINT: str = "falcon_rl.envs.gym:CoreAircraftEnv"
+VECTOR_ENTRY_POINT: str = "falcon_rl.envs.gym_vector:FalconVectorEnv"
+
+
+def fresh_seed() -> int:
+    """A seed in [0, 2**62) from fresh OS entropy (what ``seed=None`` means at construction)."""
+    return secrets.randbits(62)
+
+
+def build_env(task: str, airframe: str, num_envs: int, backend: str, device: str, seed: int | None,
+              options: dict[str, Any]) -> tuple[EnvBase, int]:
+    """(the TorchRL env of ``make_env`` with batch [num_envs], the int seed it was built with)."""
+    from .factory import make_env
+
+    seed = fresh_seed() if seed is None else int(seed)
+    env = make_env(task, airframe, num_envs=num_envs, backend=backend, device=device, seed=seed, **options)
+    return env, seed
+
+
+def single_spaces(env: EnvBase) -> tuple[spaces.Box, spaces.Box]:
+    """(observation space [D], action space [A]) of one aircraft of ``env``, float32 Boxes."""
+    def box(spec: Any) -> spaces.Box:
+        low, high = (bound[0].detach().cpu().numpy().astype(np.float32) for bound in (spec.low, spec.high))
+        return spaces.Box(low, high, dtype=np.float32)
+
+    return box(env.observation_spec["observation"]), box(env.action_spec)
+
+
+def as_action(action: object, num_envs: int, action_dim: int, dtype: torch.dtype, device: torch.device,
+              name: str = "action") -> torch.Tensor:
+    """[N, A] ``dtype`` tensor on ``device`` from an array-like ``action`` [N, A] (the action contract).
+
+    Refused with a one-line ValueError: a shape other than [N, A], a bool, integer or complex dtype,
+    or something that is not a numeric array. Infinities are clamped to [-1, 1]; a NaN is passed on
+    for the env to flag (it terminates that env).
+    """
+    array = np.asarray(action) if not isinstance(action, torch.Tensor) else action
+    if isinstance(array, np.ndarray):
+        if array.dtype.kind not in "biufc":
+            raise ValueError(f"{name} must be a real floating array of shape [{num_envs}, {action_dim}], "
+                             f"got dtype {array.dtype}")
+        if not (array.flags.writeable and array.flags.c_contiguous):
+            array = np.array(array)
+        try:
+            array = torch.from_numpy(array)
+        except TypeError:
+            raise ValueError(f"{name} must be a real floating array, got dtype {array.dtype}") from None
+    check_action(array, num_envs, action_dim, dtype, device, name)
+    return array.to(device=device, dtype=dtype).clamp(-1.0, 1.0)
+
+
+def reseed(env: EnvBase, seed: int) -> None:
+    """Seed ``env`` (the env's and the simulator's streams) and the robustness transforms over it
+    (each transform's ``generator``, or the ``seed`` a lazily made one starts from) with ``seed``."""
+    env.set_seed(int(seed))
+    if isinstance(env, TransformedEnv):
+        for index, transform in enumerate(env.transform):
+            derived = (int(seed) + 101 + index) % (2**62)
+            if isinstance(getattr(transform, "seed", None), int):
+                transform.seed = derived
+            generator = getattr(transform, "generator", None)
+            if isinstance(generator, torch.Generator):
+                generator.manual_seed(derived)
+
+
+def task_arrays(data: TensorDictBase) -> dict[str, np.ndarray]:
+    """{name: [N] or [N, k] array}: the ("task", ...) entries of ``data`` and its "termination_reason"
+    when present (fresh copies; a scalar entry [N, 1] comes out as [N])."""
+    task, reason = data.get("task", None), data.get("termination_reason", None)
+    entries = {} if task is None else dict(task.items())
+    if reason is not None:
+        entries["termination_reason"] = reason
+    n = data.batch_size[0]
+    return {key: np.array(value.detach().reshape(n, -1).squeeze(-1).cpu().numpy()) if value[0].numel() == 1
+            else np.array(value.detach().cpu().numpy()) for key, value in entries.items()}
+
+
+def default_max_episode_steps(task: str) -> int:
+    """Env steps in an episode of ``task`` built with its defaults (the task's ``defaults`` over the
+    config dataclasses; the registered ``max_episode_steps``): episode_seconds / (dt x decimation), as
+    :class:`FixedWingEnv` counts them."""
+    from .fixed_wing import FixedWingEnvConfig
+
+    spec, config = task_spec(task), FixedWingEnvConfig()
+    decimation = config.decimation if config.decimation is not None else spec.env_default("decimation", 1)
+    control_dt = spec.env_default("dt", config.dt) * decimation
+    return max(1, round(spec.default_config().episode_seconds / control_dt))
+
 
 class CoreAircraftEnv(gymnasium.Env):
-    """A single-aircraft :class:`FixedWingEnv` behind the Gymnasium API (float32 Box spaces)."""
+    """A single-aircraft :class:`FixedWingEnv` behind the Gymnasium API (float32 Box spaces [D], [A])."""
 
     metadata: dict[str, Any] = {"render_modes": []}  # noqa: RUF012 (gymnasium's class attribute)
 
-    def __init__(self, task: str = "altitude", airframe: str = "navion", backend: str = "torch",
-                 device: str = "cpu", seed: int = 0, **options: Any):
-        from .factory import make_env
-
-        self.env = make_env(task, airframe, num_envs=1, backend=backend, device=device, seed=seed, **options)
-        observation_spec, action_spec = self.env.observation_spec["observation"], self.env.action_spec
-        self.observation_space = spaces.Box(observation_spec.low[0].cpu().numpy().astype(np.float32),
-                                            observation_spec.high[0].cpu().numpy().astype(np.float32),
-                                            dtype=np.float32)
-        self.action_space = spaces.Box(action_spec.low[0].cpu().numpy().astype(np.float32),
-                                       action_spec.high[0].cpu().numpy().astype(np.float32), dtype=np.float32)
-        self._action_dtype = action_spec.dtype
-        self._action = TensorDict({"action": action_spec.zero()}, batch_size=[1], device=self.env.device)
+    def __init__(self, task: str = "altitude", airframe: str = "navion", backend: str = DEFAULT_BACKEND,
+                 device: str = "cpu", seed: int | None = None, **options: Any):
+        self.env, self.build_seed = build_env(task, airframe, 1, backend, device, seed, options)
+        self.observation_space, self.action_space = single_spaces(self.env)
+        self._action_dtype = self.env.action_spec.dtype
+        self._action_dim = int(self.action_space.shape[0])
 
     @staticmethod
-    def _info(data: TensorDict) -> dict[str, Any]:
-        info = {}
-        for key, value in data["task"].items():
-            array = value[0].detach().cpu().numpy()
-            info[key] = float(array) if array.ndim == 0 else array
-        return info
+    def _info(data: TensorDictBase) -> dict[str, Any]:
+        return {key: array[0].item() if array.ndim == 1 else array[0]
+                for key, array in task_arrays(data).items()}
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
               ) -> tuple[np.ndarray, dict[str, Any]]:
+        """(observation [D] float32, info); ``seed`` reseeds every stream (see the module docstring).
+        The env takes no reset options (an unknown one raises ValueError)."""
+        if options:
+            raise ValueError(f"unknown reset options {sorted(options)}: the falcon_rl envs take none")
         super().reset(seed=seed)
         if seed is not None:
-            self.env.set_seed(seed)
+            reseed(self.env, seed)
         data = self.env.reset()
-        obs = data["observation"][0].detach().cpu().numpy().astype(np.float32)
-        return obs, self._info(data)
+        return data["observation"][0].detach().cpu().numpy().astype(np.float32), self._info(data)
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
-        action_t = torch.as_tensor(np.asarray(action, dtype=np.float32), device=self.env.device)
-        self._action["action"] = action_t.reshape(1, -1).to(self._action_dtype).clamp(-1.0, 1.0)
-        data = self.env.step(self._action.clone())["next"]
+        """One control period with ``action`` [A] (refused with ValueError unless [A] real float)."""
+        shape = np.shape(action)
+        if shape != (self._action_dim,):
+            raise ValueError(f"action must have shape [{self._action_dim}], got {list(shape)}")
+        action_t = as_action(np.asarray(action)[None], 1, self._action_dim, self._action_dtype,
+                             self.env.device)
+        data = self.env.step(TensorDict({"action": action_t}, batch_size=[1], device=self.env.device))["next"]
         obs = data["observation"][0].detach().cpu().numpy().astype(np.float32)
         return (obs, float(data["reward"][0, 0]), bool(data["terminated"][0, 0]),
                 bool(data["truncated"][0, 0]), self._info(data))
@@ -75,11 +184,12 @@ class CoreAircraftEnv(gymnasium.Env):
 
 def register_gym_envs() -> list[str]:
     """Register every registered task's gym id with Gymnasium (idempotent: ids already known are
-    skipped); returns the ids registered by this call."""
+    skipped), with the single-env and the vector entry points and ``max_episode_steps``; returns the
+    ids registered by this call."""
     added = []
     for task, spec in TASK_SPECS.items():
         if spec.gym_id not in gymnasium.registry:
-            gymnasium.register(id=spec.gym_id, entry_point="falcon_rl.envs.gym:CoreAircraftEnv",
-                               kwargs={"task": task})
+            gymnasium.register(id=spec.gym_id, entry_point=ENTRY_POINT, vector_entry_point=VECTOR_ENTRY_POINT,
+                               max_episode_steps=default_max_episode_steps(task), kwargs={"task": task})
             added.append(spec.gym_id)
     return added
