@@ -12,6 +12,7 @@ from torchrl.envs import TransformedEnv
 from torchrl.envs.utils import check_env_specs, step_mdp
 
 from falcon_rl import make_env
+from falcon_rl.envs.tasks import TERMINATION_CODE
 from falcon_rl.physics.wind import dryden_scales
 from falcon_rl.transforms import (
     ActionDelay,
@@ -61,7 +62,7 @@ def _step(env, td, action: torch.Tensor):
 
 def test_action_delay_is_exact() -> None:
     """The command of step t reaches the simulator at step t + k (k = 30 ms / 10 ms = 3)."""
-    env = make_env("attitude", num_envs=N, action_delay_ms=30.0)
+    env = make_env("attitude", num_envs=N, action_delay_ms=30.0, decimation=1)
     base = env.base_env
     trim = base.task.trim.command[base.task.channels]
     td = env.reset()
@@ -75,9 +76,35 @@ def test_action_delay_is_exact() -> None:
         assert torch.allclose(base.sim.command[:, base.task.channels], expected.clamp(-1, 1))
 
 
+def test_action_delay_checks_the_action_before_it_enters_the_line() -> None:
+    """A refused action moves nothing; a NaN row terminates this very step (not k steps later) while
+    the line holds and "applied_action" shows only clean, clamped values."""
+    env = make_env("attitude", num_envs=N, action_delay_ms=30.0, decimation=1)
+    td = env.reset()
+    line = env.transform[0]._lines["action"]
+    before, head, steps = line.buffer.clone(), line.head, env.base_env.episode_step
+    for bad in (torch.zeros(N, 3), torch.zeros(N, 4, dtype=torch.long), torch.zeros(N, 4, dtype=torch.bool)):
+        with pytest.raises(ValueError, match="action"):
+            env.step(td.clone().set("action", bad))
+    assert torch.equal(line.buffer, before) and line.head == head
+    assert torch.equal(env.base_env.episode_step, steps)
+    action = torch.full((N, 4), 0.2)
+    action[1, 0] = float("nan")
+    action[2, 3] = float("inf")
+    full, _ = _step(env, td, action)
+    nxt = full["next"]
+    assert nxt["terminated"].flatten().tolist() == [False, True, False, False]
+    assert nxt["termination_reason"][1].item() == TERMINATION_CODE["non_finite"]
+    assert torch.isfinite(nxt["applied_action"]).all() and torch.isfinite(nxt["observation"]).all()
+    clean = torch.full((N, 4), 0.2)
+    clean[1] = 0.0
+    clean[2, 3] = 1.0
+    assert torch.equal(line.buffer[:, (line.head - 1) % line.size], clean)  # the clean, clamped value
+
+
 def test_observation_delay_is_exact() -> None:
     """With k = 20 ms / 10 ms = 2, the observation after step t is the true one after step t - 2."""
-    env = make_env("altitude", num_envs=N, obs_delay_ms=20.0)
+    env = make_env("altitude", num_envs=N, obs_delay_ms=20.0, decimation=1)
     td = env.reset()
     truth = [td["state", "height"].clone()]
     observations = [td["observation"].clone()]
@@ -91,7 +118,8 @@ def test_observation_delay_is_exact() -> None:
 
 
 def test_delays_drawn_per_episode_within_range() -> None:
-    env = make_env("altitude", num_envs=256, action_delay_ms=(20.0, 100.0), obs_delay_ms=(20.0, 80.0))
+    env = make_env("altitude", num_envs=256, action_delay_ms=(20.0, 100.0), obs_delay_ms=(20.0, 80.0),
+                   decimation=1)
     env.reset()
     action_delay, obs_delay = env.transform[0], env.transform[1]
     assert isinstance(action_delay, ActionDelay) and isinstance(obs_delay, ObservationDelay)
@@ -100,7 +128,8 @@ def test_delays_drawn_per_episode_within_range() -> None:
 
 
 def test_partial_reset_refills_only_masked_rows() -> None:
-    env = make_env("attitude", num_envs=N, action_delay_ms=30.0, obs_delay_ms=30.0, sensors="mild")
+    env = make_env("attitude", num_envs=N, action_delay_ms=30.0, obs_delay_ms=30.0, sensors="mild",
+                   decimation=1)
     base = env.base_env
     trim = base.task.trim.command[base.task.channels]
     td = env.reset()
@@ -164,7 +193,7 @@ def test_cg_shift_moves_wing_and_transfers_the_lift_moment() -> None:
 
 # ------------------------------------------------------------------------------ sensor chain
 def _sensor_env(config: SensorConfig, num_envs: int = 512, task: str = "altitude"):
-    return TransformedEnv(make_env(task, num_envs=num_envs), SensorTransform(config, seed=0))
+    return TransformedEnv(make_env(task, num_envs=num_envs, decimation=1), SensorTransform(config, seed=0))
 
 
 def test_sensor_noise_bias_scale_clip_and_quantisation() -> None:
@@ -180,7 +209,7 @@ def test_sensor_noise_bias_scale_clip_and_quantisation() -> None:
     assert error.std().item() == pytest.approx(0.02, rel=0.05)
     pos = td["measured", "position_ned"]
     assert torch.equal(pos, torch.round(td["state", "position_ned"] / 0.5) * 0.5)
-    assert torch.equal(td["measured", "height"], -pos[:, 2])
+    assert torch.equal(td["measured", "height"].flatten(), -pos[:, 2])
     assert torch.allclose(td["measured", "airspeed"], (1.1 * td["state", "airspeed"]).clamp(0.0, 40.0))
     bias = td["measured", "velocity_ned"] - td["state", "velocity_ned"]
     assert bias.std().item() == pytest.approx(0.3, rel=0.1)

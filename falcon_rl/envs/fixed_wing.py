@@ -47,6 +47,7 @@ from torchrl.envs import EnvBase
 
 from ..airframe import Airframe, load_airframe
 from ..physics import Simulator
+from ..physics.engine import make_generator
 from ..physics.params import RANDOMIZABLE_PARAMETERS
 from ..physics.switches import ModelSwitches
 from ..physics.wind import TurbulenceConfig
@@ -146,6 +147,8 @@ class FixedWingEnv(EnvBase):
     stagger_episodes(generator)        -           counters uniform in {0, ..., max - 1}; recipes
     random_state()                     {tensors}   the env's and the simulator's generator states and
                                                    the turbulence stream counter; checkpoints
+    seed_record                        (int, int)  (times seeded, last seed); the random transforms
+                                                   derive their streams from it
     set_random_state(states)           -           restore them (resume continues the same draws)
     =================================  ==========  ==================================================
 
@@ -179,12 +182,13 @@ class FixedWingEnv(EnvBase):
                              wind=None if config.wind is None else list(config.wind),
                              turbulence=turbulence, seed=config.seed, model=config.model, dtype=config.dtype,
                              compile=config.compile, warp_cpu_threads=config.warp_cpu_threads)
-        self.generator = torch.Generator(device=device)
+        self.generator = make_generator(device, config.seed)
         self.env_dt = config.dt * decimation
         self.task = spec.task(task_config, self.sim, self.generator, self.env_dt, config.ground_effect)
         self.max_episode_steps = max(1, round(self.task.episode_seconds / self.env_dt))
         self.step_count = torch.zeros(config.num_envs, dtype=torch.long, device=device)
         self._nominal_parameters = self.physical_parameters()
+        self._seed_record: tuple[int, int] = (0, 0)
         self._set_seed(config.seed)
         self._make_specs()
 
@@ -227,8 +231,18 @@ class FixedWingEnv(EnvBase):
         seed = int(seed) % (2**62)
         self.generator.manual_seed(seed)
         self.sim.reseed(seed + 1)
+        self._seed_record = (self._seed_record[0] + 1, seed)
 
-    def _reset(self, tensordict: TensorDictBase | None = None, **kwargs) -> TensorDictBase:
+    @property
+    def seed_record(self) -> tuple[int, int]:
+        """(times seeded, construction included; the seed last used): the robustness transforms
+        reseed themselves from it when it changes."""
+        return self._seed_record
+
+    def _reset(self, tensordict: TensorDictBase | None = None, seed: int | None = None,
+               **kwargs) -> TensorDictBase:
+        if seed is not None:
+            self._set_seed(seed)
         n = self.config.num_envs
         mask = None if tensordict is None else tensordict.get("_reset", None)
         if mask is None:

@@ -39,7 +39,7 @@ import numpy as np
 import torch
 from gymnasium import spaces
 from tensordict import TensorDict, TensorDictBase
-from torchrl.envs import EnvBase, TransformedEnv
+from torchrl.envs import EnvBase
 
 from ..transforms.action_check import check_action
 from .tasks.registry import TASK_SPECS, SpecView, task_spec
@@ -103,17 +103,9 @@ def as_action(action: object, num_envs: int, action_dim: int, dtype: torch.dtype
 
 
 def reseed(env: EnvBase, seed: int) -> None:
-    """Seed ``env`` (the env's and the simulator's streams) and the robustness transforms over it
-    (each transform's ``generator``, or the ``seed`` a lazily made one starts from) with ``seed``."""
+    """Seed ``env`` with ``seed``: the env's and the simulator's streams, and the robustness transforms
+    over it, which derive their own streams from the base env's seed record (as ``make_env(seed=)``)."""
     env.set_seed(int(seed))
-    if isinstance(env, TransformedEnv):
-        for index, transform in enumerate(env.transform):
-            derived = (int(seed) + 101 + index) % (2**62)
-            if isinstance(getattr(transform, "seed", None), int):
-                transform.seed = derived
-            generator = getattr(transform, "generator", None)
-            if isinstance(generator, torch.Generator):
-                generator.manual_seed(derived)
 
 
 def task_arrays(data: TensorDictBase) -> dict[str, np.ndarray]:

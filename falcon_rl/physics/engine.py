@@ -15,7 +15,12 @@ Buffers (allocated by :class:`Engine`, updated in place, never replaced):
     gust_rate_body      [N, 3]  rad/s
     params              ModelParams, per-env tensors [N, ...] (domain randomisation writes them)
     turbulence          the Dryden filter state, or None when turbulence is off
-    generator           this engine's torch generator (noise of the torch Dryden filters)
+    generator           this engine's torch generator (noise of the torch Dryden filters), a
+                        :class:`PicklableGenerator`
+
+Engines pickle (``pickle``, ``copy.deepcopy``, worker processes of ParallelEnv and collectors): the
+state above is plain tensors; a backend drops what it binds to them (kernels, launches, compiled
+functions) in ``__getstate__`` and binds it again in ``__setstate__``.
 
 A backend is one module with an :class:`Engine` subclass and one line in ``backends.ENGINES``
 (``"name": "module:Class"``, imported on first use so that Warp is only loaded when asked for).
@@ -25,6 +30,8 @@ Engines import this module only: never the registry, nor the
 
 from __future__ import annotations
 
+import hashlib
+import os
 from abc import ABC, abstractmethod
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -39,6 +46,45 @@ from .state import NUM_CONTROLS, StateLayout
 from .wind import Turbulence, TurbulenceConfig
 
 
+def fresh_seed() -> int:
+    """A seed in [0, 2**62) from fresh OS entropy (what an unseeded stream starts from; never the
+    process's torch or NumPy state, which spawned or forked workers may share)."""
+    return int.from_bytes(os.urandom(8), "little") % (2**62)
+
+
+def derive_seed(seed: int, *tags: object) -> int:
+    """A seed in [0, 2**62) derived from ``seed`` and ``tags`` (e.g. a class name and a position):
+    the same inputs give the same seed in every process (a hash, not Python's salted ``hash``), and
+    different tags give unrelated streams."""
+    text = ":".join(str(part) for part in (int(seed), *tags))
+    return int.from_bytes(hashlib.blake2b(text.encode(), digest_size=8).digest(), "little") % (2**62)
+
+
+class PicklableGenerator(torch.Generator):
+    """A ``torch.Generator`` that pickles as (device, state bytes).
+
+    A plain generator pickles its state as a temporary tensor, which a spawned worker process
+    (ParallelEnv, multi-process collectors) receives through a file descriptor that is closed by the
+    time the worker reads it; bytes travel as they are. Draws are those of ``torch.Generator``.
+    """
+
+    def __reduce__(self) -> tuple[object, tuple[str, bytes]]:
+        return _restore_generator, (str(self.device), self.get_state().numpy().tobytes())
+
+
+def _restore_generator(device: str, state: bytes) -> PicklableGenerator:
+    generator = PicklableGenerator(device=device)
+    generator.set_state(torch.frombuffer(bytearray(state), dtype=torch.uint8))
+    return generator
+
+
+def make_generator(device: torch.device | str, seed: int | None) -> PicklableGenerator:
+    """A :class:`PicklableGenerator` on ``device`` seeded with ``seed`` (None: fresh entropy)."""
+    generator = PicklableGenerator(device=device)
+    generator.manual_seed(fresh_seed() if seed is None else int(seed))
+    return generator
+
+
 @dataclass(frozen=True)
 class EngineSetup:
     """Everything an engine is built from (the facade resolves names and defaults first)."""
@@ -51,7 +97,8 @@ class EngineSetup:
     dt: float
     integrator: str
     turbulence: TurbulenceConfig | None = None
-    seed: int = 0
+    #: Seed of the generator and of the turbulence streams (None: fresh entropy).
+    seed: int | None = 0
     #: Backend-specific options (e.g. ``compile`` for torch, ``cpu_threads`` for warp); an engine
     #: raises on any name outside its ``OPTIONS``.
     options: Mapping[str, Any] = field(default_factory=dict)
@@ -88,10 +135,11 @@ class Engine(ABC):
         self.wind_ned = torch.zeros(n, 3, **kw)
         self.gust_velocity_body = torch.zeros(n, 3, **kw)
         self.gust_rate_body = torch.zeros(n, 3, **kw)
-        self.generator = torch.Generator(device=setup.device).manual_seed(setup.seed)
+        seed = fresh_seed() if setup.seed is None else int(setup.seed)
+        self.generator = make_generator(setup.device, seed)
         self.turbulence: Turbulence | None = (
             None if setup.turbulence is None
-            else Turbulence(setup.turbulence, n, setup.device, setup.dtype, setup.seed))
+            else Turbulence(setup.turbulence, n, setup.device, setup.dtype, seed))
 
     @property
     def air(self) -> AirInputs:

@@ -5,12 +5,14 @@ on), then ``integrators.INTEGRATORS[integrator]`` integrates ``dynamics.derivati
 command held (ideal actuators put on it first, ``dynamics.hold_command``), and
 ``dynamics.project`` renormalises the quaternion and saturates the actuators.
 With ``options={"compile": True}`` the integration step runs through ``torch.compile`` (one fused
-graph instead of ~1,000 small kernels per RK4 step; the first steps compile it).
+graph instead of ~1,000 small kernels per RK4 step; the first steps compile it). A pickled engine
+leaves the compiled function behind and compiles again in the process that loads it.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 import torch
 
@@ -42,10 +44,23 @@ class TorchEngine(Engine):
 
     def __init__(self, setup: EngineSetup):
         super().__init__(setup)
-        self._integrate: Callable[..., torch.Tensor] = integrate
-        if setup.options.get("compile", False):
-            monomial_plan(self.params.aero_exponents)  # warm the plan cache outside the graph
-            self._integrate = torch.compile(integrate, dynamic=False)
+        self._integrate = self._step_function()
+
+    def _step_function(self) -> Callable[..., torch.Tensor]:
+        """:func:`integrate`, through ``torch.compile`` with the ``compile`` option."""
+        if not self.setup.options.get("compile", False):
+            return integrate
+        monomial_plan(self.params.aero_exponents)  # warm the plan cache outside the graph
+        return torch.compile(integrate, dynamic=False)
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = self.__dict__.copy()
+        del state["_integrate"]  # a compiled function does not pickle; rebuilt on load
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self._integrate = self._step_function()
 
     def advance(self, substeps: int) -> None:
         for _ in range(substeps):

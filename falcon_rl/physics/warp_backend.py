@@ -9,7 +9,8 @@ written in place (domain randomisation through ``ModelParams.assign``) are seen 
 Replacing the whole ``ModelParams`` object, ``dt`` or ``integrator`` re-binds on the next step;
 replacing a single parameter tensor re-binds at the next reset (or call :meth:`WarpEngine.rebind`),
 which keeps that 30-tensor check off the per-step path.
-On CUDA the launch is queued on torch's current stream, so no synchronisation is needed.
+On CUDA the launch is queued on torch's current stream, so no synchronisation is needed. A pickled
+engine carries only its tensors and setup; loading it binds the views and records the launches again.
 On the CPU a Warp kernel runs serially on one core; batches of at least ``2 * MIN_ENVS_PER_THREAD``
 envs are split into contiguous chunks (``CHUNKS_PER_THREAD`` per thread), one recorded launch per
 chunk, which parallel threads take from a shared queue (a CPU launch is a ctypes call, which
@@ -97,6 +98,12 @@ class WarpEngine(Engine):
 
     OPTIONS = ("cpu_threads",)
 
+    #: What the engine binds to its buffers (Warp module, kernels, arrays, recorded launches, stream):
+    #: left out of a pickle and bound again from the plain state on load.
+    _RUNTIME = ("_wp", "_kernels", "device", "_torch_device", "_is_cuda", "_key", "_launches",
+                "_evaluate_launches", "_substeps", "_evaluation", "_stream", "threads", "slices",
+                "_params_object", "_params", "_params_ptrs", "_turb_placeholders", "_turb_object")
+
     @classmethod
     def placement(cls, num_envs: int, device: torch.device, dtype: torch.dtype
                   ) -> tuple[torch.device, torch.dtype]:
@@ -106,7 +113,7 @@ class WarpEngine(Engine):
         return device, dtype
 
     def __init__(self, setup: EngineSetup):
-        wp = init_warp()
+        init_warp()
         if setup.airframe.num_motors > WARP_MAX_MOTORS:
             raise ValueError(f"the warp backend supports at most {WARP_MAX_MOTORS} motors, "
                              f"{setup.airframe.name!r} has {setup.airframe.num_motors}")
@@ -114,9 +121,14 @@ class WarpEngine(Engine):
         if threads is not None and not threads >= 1:
             raise ValueError(f"warp_cpu_threads must be None or >= 1, got {threads}")
         super().__init__(setup)
+        self._bind_runtime()
+
+    def _bind_runtime(self) -> None:
+        """Set up the Warp side of the engine for its buffers: device, CPU slices, launches."""
         from . import warp_kernels
 
-        self._wp = wp
+        setup = self.setup
+        self._wp = init_warp()
         self._kernels = warp_kernels
         self.device = warp_device(setup.device)
         self._torch_device = setup.device
@@ -128,9 +140,18 @@ class WarpEngine(Engine):
         self._evaluation = torch.empty(self.num_envs, DERIVED_WIDTH, device=setup.device,
                                        dtype=torch.float32)
         self._stream: Any = None
+        threads = setup.options.get("cpu_threads")
         self.threads = 1 if self._is_cuda else cpu_thread_count(self.num_envs, threads)
         self.slices = [(0, self.num_envs)] if self._is_cuda else cpu_slices(self.num_envs, threads)
         self.rebind()
+
+    def __getstate__(self) -> dict[str, Any]:
+        """The plain state (setup, params, x, command, time, wind, gusts, turbulence, generator)."""
+        return {key: value for key, value in self.__dict__.items() if key not in self._RUNTIME}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self._bind_runtime()
 
     def _binding_key(self) -> tuple[Any, ...]:
         turb = self.turbulence

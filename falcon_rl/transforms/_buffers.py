@@ -1,9 +1,95 @@
-"""Per-env ring buffers and the small helpers the transforms share."""
+"""Per-env ring buffers, the seeded base of the random transforms, and the small functions the
+transforms share."""
 
 from __future__ import annotations
 
+from typing import Any
+
 import torch
 from tensordict import TensorDictBase
+from torchrl.envs import EnvBase, Transform
+
+from ..physics.engine import PicklableGenerator, derive_seed, fresh_seed, make_generator
+from ._env import chain_position, seed_record
+
+
+class SeededTransform(Transform):
+    """Base of the transforms that draw random numbers: each owns one stream, seeded from the env.
+
+    The stream is a generator seeded with ``derive_seed(root, position, class name)`` (position: the
+    transform's place in the env's chain, :func:`~._env.chain_position`), so the transforms of one env
+    draw distinct streams from one root seed. The root is the latest of
+
+    - the base env's seeding (its ``seed_record``): ``make_env(seed=s)``, ``env.set_seed(s)`` (also
+      through ParallelEnv / SerialEnv / collectors, which seed their workers distinctly) and
+      ``reset(seed=s)`` on envs that take it all reach every transform;
+    - the transform's own seed (constructor, :meth:`reseed`, assigning ``seed``); an env seeded
+      before the transform was appended counts as older, and an unseeded transform follows the env.
+
+    With neither (unseeded, over an env that keeps no seed record) it is fresh OS entropy. A reseed
+    restarts the stream at the next draw. The transform pickles with its stream (state bytes), its
+    buffers and the record it follows.
+    """
+
+    def __init__(self, seed: int | None = None):
+        super().__init__(in_keys=[], out_keys=[])
+        self._seed = None if seed is None else int(seed)
+        self._root: int | None = None  # root seed of the current stream (decided at the first draw)
+        self._record: tuple[int, int] | None = None  # the env's seed record last seen
+        self._generator: PicklableGenerator | None = None
+
+    def set_container(self, container: Transform | EnvBase) -> None:
+        super().set_container(container)
+        record = seed_record(self)
+        if record is not None and record != self._record:
+            self._record = record  # seen at appending: only a later reseed of the env restarts us
+            if self._seed is None and self._generator is None:
+                self._root = record[1]
+
+    @property
+    def seed(self) -> int | None:
+        """The transform's own seed (None: follow the env, else fresh entropy); assigning it reseeds."""
+        return self._seed
+
+    @seed.setter
+    def seed(self, value: int | None) -> None:
+        self.reseed(value)
+
+    def reseed(self, seed: int | None) -> None:
+        """Restart this transform's stream from ``seed`` (None: fresh entropy) at its next draw (a
+        later reseed of the env takes over again)."""
+        self._seed = None if seed is None else int(seed)
+        self._root = self._seed
+        self._generator = None
+        self._record = seed_record(self) or self._record  # the env's current seeding is older
+
+    def stream(self, device: torch.device | str = "cpu") -> torch.Generator:
+        """This transform's generator on ``device``, restarted first when the env was reseeded since
+        the last draw (or made on another device)."""
+        record = seed_record(self)
+        if record is not None and record != self._record:
+            self._record = record
+            self._root = record[1]
+            self._generator = None
+        device = torch.device(device)
+        if device.type == "cuda" and device.index is None:
+            device = torch.device("cuda", torch.cuda.current_device())
+        if self._generator is None or self._generator.device != device:
+            if self._root is None:
+                self._root = self._seed if self._seed is not None else fresh_seed()
+            self._generator = make_generator(device, derive_seed(self._root, chain_position(self),
+                                                                 type(self).__name__))
+        return self._generator
+
+    @property
+    def root_seed(self) -> int | None:
+        """The seed the current stream derives from (None before the first draw)."""
+        return self._root
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = super().__getstate__()
+        state["_parent"] = None  # a cache of the env up to this transform, rebuilt on demand
+        return state
 
 
 class DelayLine:

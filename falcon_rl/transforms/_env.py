@@ -3,6 +3,11 @@
 The members (shapes, meaning, users) are documented on :class:`falcon_rl.envs.FixedWingEnv`; any
 base env that provides them (besides TorchRL's ``batch_size`` and ``device``) works under the
 transforms. :func:`flight_env` finds the base env and names the members it lacks.
+
+Seeding: TorchRL's ``TransformedEnv.set_seed`` seeds only the base env (transforms have no seed hook),
+so the random transforms follow the base env's optional ``seed_record`` (:func:`seed_record`) and
+derive their streams from it (``_buffers.SeededTransform``); :func:`chain_position` tells the
+transforms of one env apart.
 """
 
 from __future__ import annotations
@@ -12,7 +17,7 @@ from typing import Protocol
 
 import torch
 from tensordict import TensorDictBase
-from torchrl.envs import Transform, TransformedEnv
+from torchrl.envs import Compose, EnvBase, Transform, TransformedEnv
 
 #: Members of the flight-env interface (see the table on FixedWingEnv's class docstring).
 FLIGHT_ENV_INTERFACE: tuple[str, ...] = (
@@ -20,6 +25,10 @@ FLIGHT_ENV_INTERFACE: tuple[str, ...] = (
     "set_physical_parameters", "episode_step", "max_episode_steps", "set_episode_step", "stagger_episodes",
     "random_state", "set_random_state",
 )
+#: Optional member: ``seed_record`` (int, int), how many times the env was seeded (construction
+#: included) and the seed it last used (the drawn one when seeded with None). The random transforms
+#: reseed themselves from it when it changes; without it they keep their own seeds.
+OPTIONAL_FLIGHT_ENV_MEMBERS: tuple[str, ...] = ("seed_record",)
 
 
 class FlightEnv(Protocol):
@@ -77,3 +86,51 @@ def flight_env(source: object, *members: str) -> FlightEnv:
         raise TypeError(f"{type(env).__name__} lacks flight-env interface member(s) {', '.join(missing)} "
                         "(documented on falcon_rl.envs.FixedWingEnv)")
     return env  # type: ignore[return-value]
+
+
+def _container(node: Transform) -> Transform | EnvBase | None:
+    """The Compose or env ``node`` is appended to (None when it is not)."""
+    ref = node.__dict__.get("_container")
+    return ref() if ref is not None else None
+
+
+def base_env_of(transform: Transform) -> EnvBase | None:
+    """The env under ``transform``'s TransformedEnv chain (None while it is not appended to one)."""
+    node: Transform | EnvBase | None = transform
+    while isinstance(node, Transform):
+        node = _container(node)
+    while isinstance(node, TransformedEnv):
+        node = node.base_env
+    return node
+
+
+def _leaves(transform: Transform) -> int:
+    if isinstance(transform, Compose):
+        return sum(_leaves(child) for child in transform.transforms)
+    return 1
+
+
+def chain_position(transform: Transform) -> int:
+    """How many transforms act between the base env and ``transform`` (0: the first one; nested
+    Composes and TransformedEnvs are flattened); 0 while it is not appended to an env."""
+    position, node = 0, transform
+    while True:
+        container = _container(node)
+        if isinstance(container, Compose):
+            index = next(i for i, child in enumerate(container.transforms) if child is node)
+            position += sum(_leaves(child) for child in container.transforms[:index])
+            node = container
+            continue
+        if isinstance(container, TransformedEnv):
+            env = container.base_env
+            while isinstance(env, TransformedEnv):
+                position += _leaves(env.transform)
+                env = env.base_env
+        return position
+
+
+def seed_record(transform: Transform) -> tuple[int, int] | None:
+    """The base env's ``seed_record`` (times seeded, last seed) under ``transform``; None while the
+    transform is not appended to an env or when the env keeps no record."""
+    record = getattr(base_env_of(transform), "seed_record", None)
+    return None if record is None else (int(record[0]), int(record[1]))

@@ -10,7 +10,13 @@ reset (partial resets touch only the reset rows).
   Until k steps have passed since a reset, the reset observation is repeated.
 - :class:`ActionDelay`: the command the policy emits at step t reaches the simulator at step t + k;
   until then the task's trim command is applied. The rollout keeps the policy's own "action"; the
-  command that acted is published as "applied_action".
+  command that acted is published as "applied_action". The action contract
+  (:func:`~.action_check.check_action`) is applied as the action enters the delay line: a wrong
+  shape or dtype raises before anything moves, infinities are clamped, and the clean value is what
+  the line holds and "applied_action" shows; a row whose action has a NaN gets a NaN command this
+  very step, so that the base env terminates it now (reason "non_finite"), not k steps later.
+
+Ranged delays are drawn from the transform's own stream (``SeededTransform``: seeded from the env).
 """
 
 from __future__ import annotations
@@ -18,19 +24,18 @@ from __future__ import annotations
 import torch
 from tensordict import TensorDictBase
 from torchrl.data import Composite
-from torchrl.envs import Transform
 
-from ._buffers import DelayLine, delay_range, draw_delays, reset_mask
+from ._buffers import DelayLine, SeededTransform, delay_range, draw_delays, reset_mask
 from ._env import flight_env
+from .action_check import check_action
 
 
-class _DelayTransform(Transform):
+class _DelayTransform(SeededTransform):
     """Delay bookkeeping shared by the two transforms (lazy buffers sized on first reset)."""
 
-    def __init__(self, delay_ms: float | tuple[float, float], seed: int = 0):
-        super().__init__(in_keys=[], out_keys=[])
+    def __init__(self, delay_ms: float | tuple[float, float], seed: int | None = None):
+        super().__init__(seed)
         self.delay_ms = delay_ms
-        self.generator = torch.Generator().manual_seed(int(seed))
         self._lines: dict = {}
         self._delays: torch.Tensor | None = None
 
@@ -40,7 +45,7 @@ class _DelayTransform(Transform):
     def _draw(self, mask: torch.Tensor, num_envs: int, device: torch.device) -> torch.Tensor:
         """Per-env delays [N] long, redrawn on the rows in ``mask``."""
         low, high = self._steps_range()
-        fresh = draw_delays(low, high, num_envs, self.generator, torch.device("cpu")).to(device)
+        fresh = draw_delays(low, high, num_envs, self.stream("cpu"), torch.device("cpu")).to(device)
         if self._delays is None:
             self._delays = fresh
         else:
@@ -100,6 +105,10 @@ class ObservationDelay(_DelayTransform):
 class ActionDelay(_DelayTransform):
     """Apply the policy's action ``delay_ms`` later (fixed or a (low, high) range per episode)."""
 
+    def __init__(self, delay_ms: float | tuple[float, float], seed: int | None = None):
+        super().__init__(delay_ms, seed)
+        self._applied: torch.Tensor | None = None  # [N, A] the clean command released this step
+
     def transform_observation_spec(self, observation_spec: Composite) -> Composite:
         observation_spec["applied_action"] = self.parent.full_action_spec["action"].clone()
         return observation_spec
@@ -122,11 +131,18 @@ class ActionDelay(_DelayTransform):
         return tensordict_reset
 
     def _inv_call(self, tensordict: TensorDictBase) -> TensorDictBase:
-        action = tensordict.get("action")
-        applied = self._line("action", action).push(action)
-        tensordict.set("action", applied)  # on the shallow copy the base env reads
-        return tensordict
+        """Check the action [N, A], push its clean value and pass the released command down (NaN on
+        the rows whose action had a NaN)."""
+        line = self._lines.get("action")
+        if line is None:  # a step before any reset: the line starts at the trim command
+            line = self._line("action", self._trim_action(flight_env(self, "trim_action").batch_size[0]))
+        buffer = line.buffer  # [N, K + 1, A]
+        clean, non_finite = check_action(tensordict.get("action", None), buffer.shape[0], buffer.shape[-1],
+                                         buffer.dtype, buffer.device)
+        self._applied = line.push(clean)
+        tensordict.set("action", self._applied.masked_fill(non_finite.unsqueeze(-1), float("nan")))
+        return tensordict  # on the shallow copy the base env reads
 
     def _step(self, tensordict: TensorDictBase, next_tensordict: TensorDictBase) -> TensorDictBase:
-        next_tensordict.set("applied_action", tensordict.get("action"))  # the delayed command
+        next_tensordict.set("applied_action", self._applied)  # the delayed command, clean
         return next_tensordict

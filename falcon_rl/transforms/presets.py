@@ -98,12 +98,14 @@ def grid_turbulence(level: str, airspeed: float, height: float) -> TurbulenceCon
 
 
 def robustness_transforms(sensors: object = None, obs_delay_ms: object = None, action_delay_ms: object = None,
-                          randomize: object = None, seed: int = 0) -> list:
+                          randomize: object = None, seed: int | None = None) -> list:
     """The transforms ``make_env`` appends, in order: domain randomisation (before the base reset),
     action delay, sensors, observation delay (after the sensors). Empty when all are off.
 
     sensors: grid name or SensorConfig; delays: grid name, ms, or a (low, high) ms range drawn per
-    episode; randomize: True (default ranges), a RandomizationConfig, or None / False.
+    episode; randomize: True (default ranges), a RandomizationConfig, or None / False. ``seed``: the
+    root seed of every transform (each derives its own stream from it and its place in the chain);
+    None: they follow the seed of the env they are appended to (fresh entropy when it has none).
     """
     out: list = []
     if randomize is not None and randomize is not False:
@@ -111,14 +113,14 @@ def robustness_transforms(sensors: object = None, obs_delay_ms: object = None, a
         if config is not None and not isinstance(config, RandomizationConfig):
             raise TypeError(f"randomize must be True, False, None or a RandomizationConfig, "
                             f"got {randomize!r}")
-        out.append(DomainRandomization(config, seed=seed + 101))
+        out.append(DomainRandomization(config, seed=seed))
     action = delay_preset(action_delay_ms, ACTION_DELAY_MS)
     if action is not None:
-        out.append(ActionDelay(action, seed=seed + 102))
+        out.append(ActionDelay(action, seed=seed))
     sensor_config = sensor_preset(sensors)
     if sensor_config is not None:
-        out.append(SensorTransform(sensor_config, seed=seed + 103))
+        out.append(SensorTransform(sensor_config, seed=seed))
     observation = delay_preset(obs_delay_ms, OBS_DELAY_MS)
     if observation is not None:
-        out.append(ObservationDelay(observation, seed=seed + 104))
+        out.append(ObservationDelay(observation, seed=seed))
     return out

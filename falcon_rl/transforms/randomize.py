@@ -19,7 +19,11 @@ the env's ``nominal_physical_parameters`` unless stated:
                                    simplified form with probability p, else the full model (for
                                    mixed-model training or ablation batches)
 
-A range of None leaves that parameter nominal. The specs are unchanged.
+A range of None leaves that parameter nominal. The specs are unchanged. Draws come from the
+transform's own stream (``SeededTransform``: seeded from the env). The draws happen before the base
+env resets; a ``reset(seed=s)`` reseeds the base env only after that, so then the reset rows are drawn
+again, from the new stream, right after the base reset (the reset's own output still reflects the
+previous draw; ``env.set_seed(s)`` before ``reset()`` has no such lag).
 """
 
 from __future__ import annotations
@@ -29,11 +33,10 @@ from dataclasses import dataclass
 
 import torch
 from tensordict import TensorDictBase
-from torchrl.envs import Transform
 
 from ..physics.switches import SWITCH_NAMES, SWITCH_ROWS
-from ._buffers import reset_mask
-from ._env import flight_env
+from ._buffers import SeededTransform, reset_mask
+from ._env import flight_env, seed_record
 
 Range = tuple[float, float] | None
 
@@ -70,19 +73,18 @@ _FIELDS = ("mass", "inertia", "aero_coefficients", "aero_rates", "wing_quarter_c
 _REFERENCE_FIELDS = ("chord", "span")
 
 
-class DomainRandomization(Transform):
+class DomainRandomization(SeededTransform):
     """Redraw model parameters, wind and turbulence severity of the reset rows before each reset."""
 
-    def __init__(self, config: RandomizationConfig | None = None, seed: int = 0):
-        super().__init__(in_keys=[], out_keys=[])
+    def __init__(self, config: RandomizationConfig | None = None, seed: int | None = None):
+        super().__init__(seed)
         self.config = config or RandomizationConfig()
-        self.generator = torch.Generator().manual_seed(int(seed))
         self._nominal: dict[str, torch.Tensor] | None = None
 
     def _uniform(self, bounds: Range, n: int, like: torch.Tensor, default: float = 1.0) -> torch.Tensor:
         if bounds is None:
             return torch.full((n,), default, dtype=like.dtype, device=like.device)
-        u = torch.rand(n, generator=self.generator, dtype=like.dtype).to(like.device)
+        u = torch.rand(n, generator=self.stream("cpu"), dtype=like.dtype).to(like.device)
         return bounds[0] + (bounds[1] - bounds[0]) * u
 
     def _sample_params(self, n: int) -> dict[str, torch.Tensor]:
@@ -118,8 +120,20 @@ class DomainRandomization(Transform):
 
     def _reset_env_preprocess(self, tensordict: TensorDictBase | None) -> TensorDictBase | None:
         env = flight_env(self, "nominal_physical_parameters", "set_physical_parameters")
+        self._randomize(reset_mask(tensordict, env.batch_size[0], env.device))
+        return tensordict
+
+    def _reset(self, tensordict: TensorDictBase, tensordict_reset: TensorDictBase) -> TensorDictBase:
+        record = seed_record(self)
+        if record is not None and record != self._record:  # the base reset took a seed: draw again
+            self._randomize(reset_mask(tensordict, tensordict_reset.batch_size[0], tensordict_reset.device))
+        return tensordict_reset
+
+    def _randomize(self, mask: torch.Tensor) -> None:
+        """Draw every randomised quantity for all N envs and write the rows of ``mask`` [N] bool."""
+        env = flight_env(self, "nominal_physical_parameters", "set_physical_parameters")
         n = env.batch_size[0]
-        mask = reset_mask(tensordict, n, env.device)
+        self.stream("cpu")  # follow a reseed of the env before drawing (even when nothing is drawn)
         if self._nominal is None:
             self._nominal = env.nominal_physical_parameters(_FIELDS + _REFERENCE_FIELDS)
         values = self._sample_params(n)
@@ -136,7 +150,6 @@ class DomainRandomization(Transform):
             row = SWITCH_ROWS[name]
             values[row] = simplified.to(torch.int32)
         env.set_physical_parameters(mask, **values)
-        return tensordict
 
     def sampled(self) -> dict[str, torch.Tensor]:
         """Current per-env values {name: [N, ...]} of what this transform draws (copies): the model

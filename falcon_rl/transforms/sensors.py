@@ -18,6 +18,9 @@ from the GPS velocity rotated by the measured attitude), the rest copied from th
 surfaces, throttle, ...). "observation" is recomputed by the task from ("measured", ...); the true
 ("state", ...) is left as it is, so metrics and rewards use the truth. Task-held buffers (tracking
 errors, integrals) are still fed by the true state inside the env step.
+
+Noise, biases and scale factors come from the transform's own stream on the env's device
+(``SeededTransform``: seeded from the env, so ``env.set_seed`` reaches it).
 """
 
 from __future__ import annotations
@@ -27,11 +30,10 @@ from dataclasses import dataclass, field, fields
 import torch
 from tensordict import TensorDict, TensorDictBase
 from torchrl.data import Composite
-from torchrl.envs import Transform
 
 from ..physics import state as S
 from ..physics.rotations import ned_to_body, normalize_quaternion, quaternion_to_euler
-from ._buffers import DelayLine, delay_steps, reset_mask
+from ._buffers import DelayLine, SeededTransform, delay_steps, reset_mask
 from ._env import flight_env
 
 
@@ -99,15 +101,13 @@ class _ChannelState:
         self.line.delay.fill_(steps)
 
 
-class SensorTransform(Transform):
+class SensorTransform(SeededTransform):
     """Writes ("measured", ...) through the sensor chain and recomputes "observation" from it."""
 
-    def __init__(self, config: SensorConfig, seed: int = 0):
-        super().__init__(in_keys=[], out_keys=[])
+    def __init__(self, config: SensorConfig, seed: int | None = None):
+        super().__init__(seed)
         self.config = config
         self.channels = config.channels()
-        self.seed = int(seed)
-        self.generator: torch.Generator | None = None  # on the env's device, made at first use
         self._state: dict[str, _ChannelState] = {}
         self._counter: torch.Tensor | None = None
 
@@ -117,9 +117,8 @@ class SensorTransform(Transform):
 
     # ------------------------------------------------------------------ chain
     def _randn(self, like: torch.Tensor) -> torch.Tensor:
-        if self.generator is None:
-            self.generator = torch.Generator(device=like.device).manual_seed(self.seed)
-        return torch.randn(like.shape, generator=self.generator, dtype=like.dtype, device=like.device)
+        generator = self.stream(like.device)
+        return torch.randn(like.shape, generator=generator, dtype=like.dtype, device=like.device)
 
     def _corrupt(self, key: str, x: torch.Tensor, st: _ChannelState) -> torch.Tensor:
         ch = st.channel
@@ -177,7 +176,7 @@ class SensorTransform(Transform):
         fields_ = {k: state.get(k) for k in state.keys()}  # noqa: SIM118 (iterating a td walks the batch)
         fields_.update(measured)
         if "position_ned" in measured and "height" in fields_:
-            fields_["height"] = -measured["position_ned"][:, S.DOWN]
+            fields_["height"] = -measured["position_ned"][:, S.DOWN].reshape(fields_["height"].shape)
         q = fields_["quaternion"]
         if "quaternion" in measured and "euler" in fields_:
             fields_["euler"] = quaternion_to_euler(q)
