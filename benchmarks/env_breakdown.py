@@ -39,13 +39,14 @@ def _time(fn: Callable[[], object], device: str, calls: int = 200, blocks: int =
 
 def breakdown(task: str, airframe: str, num_envs: int, backend: str, device: str) -> dict[str, float]:
     """Seconds per call of each part of one env step."""
-    env = make_env(task, airframe, num_envs=num_envs, backend=backend, device=device)
+    env = make_env(task, airframe, num_envs=num_envs, backend=backend, device=device, seed=0)
     env_step = env_stepper(env)
     sim, task_obj = env.sim, env.task  # internals on purpose: their parts are what is timed
     state = sim.state
     action = env.action_spec.zero()
     observation = env.observe(state)
     flags = torch.zeros(num_envs, 1, dtype=torch.bool, device=env.device)
+    reason = torch.zeros(num_envs, dtype=torch.long, device=env.device)
     reward = torch.zeros(num_envs, 1, device=env.device)
     decimation = env.config.decimation
     parts = {
@@ -53,7 +54,7 @@ def breakdown(task: str, airframe: str, num_envs: int, backend: str, device: str
         f"Simulator.step x{decimation}": lambda: sim.step(sim.command, substeps=decimation),
         "Simulator.state": lambda: sim.state,
         "task.step (observe, reward, done)": lambda: task_obj.step(state, action),
-        "env._output (TensorDict)": lambda: env._output(observation, state, flags, flags, reward=reward),
+        "env._output (TensorDict)": lambda: env._output(observation, state, reason, flags, reward=reward),
     }
     return {name: _time(fn, device) for name, fn in parts.items()}
 

@@ -150,7 +150,8 @@ def time_env(cfg: BenchConfig, backend: str, num_envs: int) -> BenchCase | None:
         return None
     case = BenchCase("env", backend, cfg.device, num_envs, cfg.steps, cfg.trials)
     try:
-        env = make_env("altitude", cfg.airframe, num_envs=num_envs, backend=backend, device=cfg.device)
+        env = make_env("altitude", cfg.airframe, num_envs=num_envs, backend=backend, device=cfg.device,
+                       seed=0, decimation=1)  # one physics step per env step, as the simulator rows
         blocks, warmup_s = _time_blocks(env_stepper(env), cfg.steps, cfg.trials, cfg.warmup, cfg.device)
     except Exception as exc:  # the env is optional here: report, do not fail the bench
         case.error = f"{type(exc).__name__}: {exc}".splitlines()[0][:200]
