@@ -210,3 +210,18 @@ def test_parallel_env_and_collector_workers_from_constructors() -> None:
             collector.shutdown()
     assert not torch.equal(batches[0][0], batches[0][1])  # one worker per leading index
     assert torch.equal(batches[0], batches[1])
+
+
+def test_a_transform_stream_restores_from_its_random_state() -> None:
+    """Checkpoints save each random transform's stream; restoring it continues the same draws."""
+    from falcon_rl.transforms import SensorTransform
+
+    env = make_env("altitude", "navion", num_envs=2, seed=3, sensors="mild")
+    env.rollout(3, break_when_any_done=False)
+    sensors = next(t for t in env.transform if isinstance(t, SensorTransform))
+    saved = sensors.random_state()
+    first = sensors.stream().get_state().clone()
+    draws = torch.rand(4, generator=sensors.stream())
+    sensors.set_random_state(saved)
+    assert torch.equal(sensors.stream().get_state(), first)
+    assert torch.equal(torch.rand(4, generator=sensors.stream()), draws)

@@ -86,6 +86,31 @@ class SeededTransform(Transform):
         """The seed the current stream derives from (None before the first draw)."""
         return self._root
 
+    def random_state(self) -> dict[str, torch.Tensor]:
+        """This transform's stream as tensors (checkpoints): "seeds" [4] long (own seed, root, and the
+        env seed record followed; -1 for none) and "generator" (its state bytes, empty before the
+        first draw)."""
+        record = self._record or (-1, -1)
+        seeds = [-1 if v is None else v for v in (self._seed, self._root)] + list(record)
+        generator = (self._generator.get_state() if self._generator is not None
+                     else torch.zeros(0, dtype=torch.uint8))
+        return {"seeds": torch.tensor(seeds, dtype=torch.long), "generator": generator,
+                "device": torch.tensor(-1 if self._generator is None or self._generator.device.type == "cpu"
+                                       else int(self._generator.device.index or 0))}
+
+    def set_random_state(self, states: dict[str, torch.Tensor]) -> None:
+        """Restore what :meth:`random_state` returned: the next draw continues the same stream."""
+        own, root, count, last = (int(v) for v in states["seeds"].tolist())
+        self._seed = None if own < 0 else own
+        self._root = None if root < 0 else root
+        self._record = None if count < 0 else (count, last)
+        self._generator = None
+        if states["generator"].numel():
+            index = int(states["device"])
+            device = torch.device("cpu") if index < 0 else torch.device("cuda", index)
+            self._generator = make_generator(device, 0)
+            self._generator.set_state(states["generator"])
+
     def __getstate__(self) -> dict[str, Any]:
         state = super().__getstate__()
         state["_parent"] = None  # a cache of the env up to this transform, rebuilt on demand
