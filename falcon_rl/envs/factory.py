@@ -73,8 +73,7 @@ def add_observation_norm(env: EnvBase, frames: int = 1000, min_std: float = 1e-2
         env = TransformedEnv(env)
     norm = ObservationNorm(in_keys=["observation"], standard_normal=True)
     env.append_transform(norm)
-    steps = max(1, -(-frames // env.batch_size.numel()))
-    norm.init_stats(num_iter=steps, reduce_dim=(0, 1), cat_dim=1)
+    norm.init_stats(num_iter=max(1, int(frames)), reduce_dim=(0, 1), cat_dim=1)  # num_iter counts frames
     norm.scale.data.clamp_min_(min_std)
     env.reset()
     return env
