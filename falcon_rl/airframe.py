@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import math
+import unicodedata
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -29,6 +30,16 @@ RATE_NAMES: tuple[str, ...] = ("p", "q", "r")
 SURFACES: tuple[str, ...] = ("elevator", "aileron", "rudder")
 CONTROL_NAMES: tuple[str, ...] = (*SURFACES, "throttle")
 POWERPLANTS: tuple[str, ...] = ("electric", "piston")
+#: Largest magnitude of any number in an airframe file (1e300 is a typo, and it would overflow the physics).
+MAX_MAGNITUDE = 1e9
+#: Largest magnitude of an aero coefficient of a monomial or rate term.
+MAX_COEFFICIENT = 1e6
+#: Smallest positive physical quantity (a mass of 1e-300 kg is a typo, and it would overflow the physics).
+MIN_POSITIVE = 1e-9
+#: Largest airframe file, bytes.
+MAX_FILE_BYTES = 16 * 2**20
+#: Longest name or display name, characters.
+MAX_NAME_LENGTH = 100
 
 # The shipped JSON files: falcon_rl/airframes links to the repository's airframes/ folder and
 # the wheel carries the files themselves.
@@ -157,11 +168,70 @@ def list_airframes() -> list[str]:
 def load_airframe(name_or_path: str | Path) -> Airframe:
     """Load and validate an airframe by shipped name (``"navion"``) or by JSON path."""
     path = _resolve(name_or_path)
+    return parse_airframe(_read_json(path), path)
+
+
+class _RefusedError(ValueError):
+    """A JSON construct the airframe format refuses (raised while decoding, reported with the file)."""
+
+
+def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    """object_pairs_hook: a JSON object as a dict, refusing a key given twice (the last would win)."""
+    seen: dict[str, Any] = {}
+    for key, value in pairs:
+        if key in seen:
+            raise _RefusedError(f"duplicate key {key!r} in one JSON object (the later value would win)")
+        seen[key] = value
+    return seen
+
+
+def _first_nonfinite(document: Any) -> str | None:
+    """The dotted path of the first NaN or infinite number in a decoded document (walked without
+    recursion), or None."""
+    stack: list[tuple[str, Any]] = [("", document)]
+    while stack:
+        where, value = stack.pop()
+        if isinstance(value, float) and not math.isfinite(value):
+            return where or "<root>"
+        if isinstance(value, dict):
+            stack.extend((f"{where}.{k}" if where else str(k), v) for k, v in reversed(value.items()))
+        elif isinstance(value, list):
+            stack.extend((f"{where}[{i}]", v) for i, v in reversed(list(enumerate(value))))
+    return None
+
+
+def _read_json(path: Path) -> Any:
+    """The decoded document of ``path``: strict UTF-8 (a UTF-8 byte-order mark is skipped), strict JSON
+    (no duplicate keys, NaN, Infinity or numbers beyond the float range), at most MAX_FILE_BYTES;
+    AirframeError naming the file (and the field) otherwise."""
     try:
-        raw = json.loads(path.read_text())
+        size = path.stat().st_size
+        if size > MAX_FILE_BYTES:
+            raise AirframeError(f"{path}: {size} bytes; an airframe file is at most {MAX_FILE_BYTES} bytes")
+        data = path.read_bytes()
+    except OSError as exc:
+        raise AirframeError(f"{path}: cannot be read ({exc.strerror or type(exc).__name__})") from None
+    if data.startswith((b"\xff\xfe", b"\xfe\xff")):
+        raise AirframeError(f"{path}: UTF-16 text; save the airframe file as UTF-8")
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise AirframeError(f"{path}: not UTF-8 text (byte 0x{data[exc.start]:02x} at offset {exc.start})"
+                            ) from None
+    try:
+        document = json.loads(text, object_pairs_hook=_unique_keys)
     except json.JSONDecodeError as exc:
-        raise AirframeError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from exc
-    return parse_airframe(raw, path)
+        raise AirframeError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+    except _RefusedError as exc:
+        raise AirframeError(f"{path}: {exc}") from None
+    except RecursionError:
+        raise AirframeError(f"{path}: JSON nested too deep (an airframe file nests a few levels)") from None
+    except ValueError as exc:  # an integer literal of thousands of digits
+        raise AirframeError(f"{path}: not valid JSON ({exc})") from None
+    where = _first_nonfinite(document)
+    if where is not None:
+        raise AirframeError(f"{path}: field '{where}': must be finite (NaN and Infinity are not JSON)")
+    return document
 
 
 def _shipped_files() -> list[Path]:
@@ -170,7 +240,11 @@ def _shipped_files() -> list[Path]:
 
 def _resolve(name_or_path: str | Path) -> Path:
     candidate = Path(name_or_path)
+    if "\0" in str(name_or_path):
+        raise AirframeError(f"{str(name_or_path)!r}: not a valid path (it holds a NUL character)")
     if candidate.suffix == ".json" or candidate.exists():
+        if candidate.is_dir():
+            raise AirframeError(f"{candidate}: a directory, not an airframe file")
         if not candidate.is_file():
             raise AirframeError(f"{candidate}: airframe file not found")
         return candidate
@@ -208,37 +282,60 @@ class _Reader:
                 return default
             raise self.fail(name, "missing required field")
         value = data[key]
-        if kind is float and isinstance(value, int) and not isinstance(value, bool):
-            value = float(value)
         if isinstance(value, bool) and kind is not bool:
             raise self.fail(name, f"expected {_kind_name(kind)}, got bool")
+        if isinstance(value, int | float) and not isinstance(value, bool):
+            if isinstance(value, float) and not math.isfinite(value):
+                raise self.fail(name, "must be finite")
+            if abs(value) > MAX_MAGNITUDE:
+                size = f"{value:.3g}" if isinstance(value, float) else f"~1e{len(str(abs(value))) - 1}"
+                raise self.fail(name, f"magnitude {size} is absurd (at most {MAX_MAGNITUDE:g})")
+            if kind is float:
+                value = float(value)
         if not isinstance(value, kind):
             raise self.fail(name, f"expected {_kind_name(kind)}, got {type(value).__name__}")
-        if isinstance(value, float) and not math.isfinite(value):
-            raise self.fail(name, "must be finite")
         return value
 
     def positive(self, data: dict, key: str, where: str, default: Any = ...) -> float:
         value = self.get(data, key, where, float, default)
         if not value > 0:
             raise self.fail(f"{where}.{key}", f"must be > 0, got {value}")
+        if value < MIN_POSITIVE:
+            raise self.fail(f"{where}.{key}", f"{value:.3g} is absurdly small (at least {MIN_POSITIVE:g})")
         return value
 
     def vector(self, data: dict, key: str, where: str, length: int) -> tuple[float, ...]:
         value = self.get(data, key, where, list)
         if len(value) != length or not all(_is_number(v) for v in value):
-            raise self.fail(f"{where}.{key}", f"expected a list of {length} numbers")
+            raise self.fail(f"{where}.{key}", f"expected a list of {length} numbers (finite, of magnitude at "
+                                              f"most {MAX_MAGNITUDE:g})")
         return tuple(float(v) for v in value)
 
-    def interval(self, data: dict, key: str, where: str) -> tuple[float, float]:
+    def interval(self, data: dict, key: str, where: str, bound: float = MAX_MAGNITUDE) -> tuple[float, float]:
         lo, hi = self.vector(data, key, where, 2)
         if not lo < hi:
             raise self.fail(f"{where}.{key}", f"limits out of order: [{lo}, {hi}] needs min < max")
+        if not -bound <= lo < hi <= bound:
+            raise self.fail(f"{where}.{key}", f"[{lo}, {hi}] must lie within [{-bound:.4g}, {bound:.4g}]")
         return lo, hi
+
+    def text(self, data: dict, key: str, where: str, default: Any = ..., file_name: bool = False) -> str:
+        """A non-empty printable string (no control characters); with ``file_name``, also usable as a
+        file name (no path separators, no leading dot), as the outputs named after an airframe need."""
+        name = f"{where}.{key}" if where else key
+        value = self.get(data, key, where, str, default)
+        if not value.strip() or len(value) > MAX_NAME_LENGTH:
+            raise self.fail(name, f"must be 1 to {MAX_NAME_LENGTH} characters, got {len(value)}")
+        if any(unicodedata.category(ch).startswith("C") for ch in value):
+            raise self.fail(name, "contains control characters (terminal escapes, newlines, ...)")
+        if file_name and ("/" in value or "\\" in value or value.startswith(".")):
+            raise self.fail(name, "must be usable as a file name: no '/' or '\\', no leading '.'")
+        return value
 
 
 def _is_number(value: Any) -> bool:
-    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+    return (isinstance(value, int | float) and not isinstance(value, bool) and abs(value) <= MAX_MAGNITUDE
+            and math.isfinite(value))
 
 
 def _kind_name(kind: type | tuple) -> str:
@@ -261,7 +358,8 @@ def parse_airframe(raw: Any, path: Path) -> Airframe:
     version = r.get(raw, "schema_version", "", int)
     if version != 1:
         raise r.fail("schema_version", f"unsupported version {version}; this falcon-rl reads 1")
-    name = r.get(raw, "name", "", str)
+    name = r.text(raw, "name", "", file_name=True)
+    display_name = r.text(raw, "display_name", "", name)
     geometry = _parse_geometry(r, raw)
     mass, inertia = _parse_mass(r, raw)
     aero = _parse_aero(r, raw)
@@ -273,7 +371,7 @@ def parse_airframe(raw: Any, path: Path) -> Airframe:
         raise r.fail("provenance", "needs non-empty 'sources' and 'method'")
     return Airframe(
         name=name,
-        display_name=r.get(raw, "display_name", "", str, name),
+        display_name=display_name,
         path=Path(path),
         geometry=geometry,
         mass=mass,
@@ -339,8 +437,8 @@ def _parse_aero(r: _Reader, raw: dict) -> AeroModel:
     oswald = r.positive(a, "oswald_efficiency", "aero")
     if oswald > 1.0:
         raise r.fail("aero.oswald_efficiency", f"must be in (0, 1], got {oswald}")
-    alpha_range = r.interval(a, "alpha_range_rad", "aero")
-    beta_range = r.interval(a, "beta_range_rad", "aero")
+    alpha_range = r.interval(a, "alpha_range_rad", "aero", math.pi / 2)
+    beta_range = r.interval(a, "beta_range_rad", "aero", math.pi / 2)
     alpha_stall = r.positive(a, "alpha_stall_rad", "aero")
     if not alpha_range[0] < alpha_stall <= alpha_range[1] * 1.5:
         raise r.fail("aero.alpha_stall_rad", f"must lie in the alpha range {alpha_range}")
@@ -357,7 +455,7 @@ def _parse_aero(r: _Reader, raw: dict) -> AeroModel:
             if not isinstance(term, dict):
                 raise r.fail(twhere, "expected an object like {\"coef\": 4.4, \"alpha\": 1}")
             r.no_unknown(term, {"coef", *AERO_VARIABLES}, twhere)
-            coef = r.get(term, "coef", twhere, float)
+            coef = _coefficient(r, term, "coef", twhere)
             powers = []
             for var in AERO_VARIABLES:
                 p = r.get(term, var, twhere, int, 0)
@@ -370,13 +468,40 @@ def _parse_aero(r: _Reader, raw: dict) -> AeroModel:
         rate_entry = r.get(entry, "rates", where, dict, {})
         r.no_unknown(rate_entry, set(RATE_NAMES), f"{where}.rates")
         for j, rname in enumerate(RATE_NAMES):
-            rates[k, j] = r.get(rate_entry, rname, f"{where}.rates", float, 0.0)
+            rates[k, j] = _coefficient(r, rate_entry, rname, f"{where}.rates", 0.0)
     if not monomials:
         raise r.fail("aero.coefficients", "no monomial terms at all")
     keys_sorted = sorted(monomials)
     exponents = np.array(keys_sorted, dtype=np.int64).reshape(-1, len(AERO_VARIABLES))
     table = np.stack([monomials[k] for k in keys_sorted])
+    _check_not_empty(r, exponents, table, rates)
     return AeroModel(exponents, table, rates, oswald, alpha_range, beta_range, alpha_stall)
+
+
+def _coefficient(r: _Reader, data: dict, key: str, where: str, default: Any = ...) -> float:
+    """An aero coefficient: a finite number of magnitude at most MAX_COEFFICIENT."""
+    value = r.get(data, key, where, float, default)
+    if abs(value) > MAX_COEFFICIENT:
+        raise r.fail(f"{where}.{key}", f"magnitude {value:.3g} is absurd for an aero coefficient "
+                                       f"(at most {MAX_COEFFICIENT:g})")
+    return value
+
+
+def _check_not_empty(r: _Reader, exponents: np.ndarray, table: np.ndarray, rates: np.ndarray) -> None:
+    """Refuse a physically empty model: every coefficient needs a non-zero term or rate derivative, lift a
+    term in alpha, and drag a positive zero-lift term (C_D at zero alpha, beta and deflections)."""
+    for k, cname in enumerate(AERO_COEFFICIENTS):
+        if not table[:, k].any() and not rates[k].any():
+            raise r.fail(f"aero.coefficients.{cname}", "every term and rate is zero or absent: a physically "
+                                                      "empty model")
+    alpha = AERO_VARIABLES.index("alpha")
+    if not table[exponents[:, alpha] > 0, AERO_COEFFICIENTS.index("CL")].any():
+        raise r.fail("aero.coefficients.CL", "needs a term in alpha (a lift curve slope)")
+    constant = ~exponents.any(axis=1)
+    cd0 = float(table[constant, AERO_COEFFICIENTS.index("CD")].sum())
+    if not cd0 > 0:
+        raise r.fail("aero.coefficients.CD", f"needs a positive zero-lift drag term (the constant term is "
+                                             f"{cd0:g})")
 
 
 def _parse_propulsion(r: _Reader, raw: dict) -> tuple[Motor, ...]:
@@ -408,7 +533,7 @@ def _parse_propulsion(r: _Reader, raw: dict) -> tuple[Motor, ...]:
             raise r.fail(f"{where}.torque_coefficient", f"must be >= 0, got {torque}")
         ax = tuple(float(v) for v in axis / norm)
         motors.append(Motor(
-            name=r.get(m, "name", where, str, f"motor{i}"),
+            name=r.text(m, "name", where, f"motor{i}"),
             position=tuple(r.vector(m, "position_m", where, 3)),  # type: ignore[arg-type]
             thrust_axis=ax,  # type: ignore[arg-type]
             spin=spin,
@@ -441,7 +566,7 @@ def _parse_actuators(r: _Reader, raw: dict) -> dict[str, Actuator]:
             tau = 0.0
             wn = r.positive(entry, "natural_frequency_rad_s", where)
             zeta = r.positive(entry, "damping_ratio", where)
-        lo, hi = r.interval(entry, "limits_rad", where)
+        lo, hi = r.interval(entry, "limits_rad", where, math.pi / 2)
         if not lo <= 0.0 <= hi:
             raise r.fail(f"{where}.limits_rad", f"must contain 0, got [{lo}, {hi}]")
         out[name] = Actuator(order, tau, wn, zeta, (lo, hi))

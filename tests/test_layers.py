@@ -25,7 +25,7 @@ PACKAGE_DIR = Path(__file__).resolve().parents[1] / ROOT
 #: ``validation`` and ``derive`` import only physics and the airframe, so they sit on the lowest layer that
 #: allows it; ``objectives`` is the deprecated alias of ``recipes``.
 LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
-    ("constants", ("falcon_rl.constants",)),
+    ("constants", ("falcon_rl.constants", "falcon_rl._lazy")),
     ("airframe", ("falcon_rl.airframe",)),
     ("physics", ("falcon_rl.physics",)),
     ("envs / transforms / baselines / policies / validation / derive",

@@ -9,11 +9,19 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import unicodedata
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 #: Largest integer a count flag accepts (a 400-digit integer is a typo, not a request).
 MAX_COUNT = 10**9
+#: Longest episode a --seconds flag accepts, s.
+MAX_EPISODE_SECONDS = 3600.0
+#: Airspeeds the flight model covers, m/s (it is incompressible: below Mach 1 at sea level).
+MAX_AIRSPEED = 340.0
+#: Heights the atmosphere model covers, m (the ISA tables stop at 20 km).
+MAX_HEIGHT = 20_000.0
 
 
 class UsageError(ValueError):
@@ -89,6 +97,8 @@ def check_device(device: str, flag: str = "--device") -> str:
         raise UsageError(f"{flag} {device!r}: CUDA is not available on this machine (use cpu)")
     if parsed.type not in ("cpu", "cuda"):
         raise UsageError(f"{flag} {device!r}: only cpu and cuda devices are supported")
+    if parsed.type == "cuda" and parsed.index is not None and parsed.index >= torch.cuda.device_count():
+        raise UsageError(f"{flag} {device!r}: this machine has {torch.cuda.device_count()} CUDA device(s)")
     return device
 
 
@@ -100,8 +110,8 @@ def output_dir(path: str | Path, flag: str = "--out") -> Path:
         probe = path / ".write-test"
         probe.write_bytes(b"")
         probe.unlink()
-    except OSError as exc:
-        reason = exc.strerror or exc
+    except (OSError, ValueError) as exc:  # ValueError: a NUL byte in the path
+        reason = getattr(exc, "strerror", None) or exc
         raise UsageError(f"{flag} {str(path)!r} is not a writable directory ({reason})") from None
     return path
 
@@ -115,5 +125,116 @@ def inside(root: Path, name: str, flag: str) -> Path:
     return root / name
 
 
-__all__ = ["MAX_COUNT", "UsageError", "check_device", "emit", "finite_float", "inside", "nonnegative_float",
-           "nonnegative_int", "output_dir", "positive_float", "positive_int"]
+def output_file(path: str | Path, flag: str) -> Path:
+    """``path`` as a file to write: not a directory, in a writable directory (created), else UsageError."""
+    path = Path(path)
+    if path.is_dir() or path.name in ("", ".", ".."):
+        raise UsageError(f"{flag} {str(path)!r} is a directory, not a file name")
+    output_dir(path.parent, flag)
+    return path
+
+
+def bounded_float(low: float, high: float, unit: str = "", closed_low: bool = False
+                  ) -> Callable[[str], float]:
+    """argparse type: a finite float in (low, high] ([low, high] with ``closed_low``); ``unit`` follows the
+    interval in the message."""
+    interval = f"{'[' if closed_low else '('}{low:g}, {high:g}]{' ' + unit if unit else ''}"
+
+    def parse(text: str) -> float:
+        value = finite_float(text)
+        if not ((value >= low if closed_low else value > low) and value <= high):
+            raise argparse.ArgumentTypeError(f"{text!r} must be in {interval}")
+        return value
+
+    parse.__name__ = "number"  # argparse names the type in some of its messages
+    return parse
+
+
+def bounded_int(low: int, high: int) -> Callable[[str], int]:
+    """argparse type: an integer in [low, high]."""
+
+    def parse(text: str) -> int:
+        value = int(_number(text, int, "an integer"))
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(f"{text!r} must be an integer in [{low}, {high}]")
+        return value
+
+    parse.__name__ = "integer"
+    return parse
+
+
+#: --seconds of the protocols: an episode length in (0, MAX_EPISODE_SECONDS] s.
+episode_seconds = bounded_float(0.0, MAX_EPISODE_SECONDS, "s")
+
+
+def comma_list(text: str, flag: str, choices: tuple[str, ...] | None = None) -> list[str]:
+    """The non-empty items of a comma list, each one of ``choices`` when given, else UsageError."""
+    items = [item.strip() for item in text.split(",") if item.strip()]
+    valid = f"; choose from {', '.join(choices)}" if choices is not None else ""
+    unknown = sorted(set(items) - set(choices)) if choices is not None else []
+    if unknown:
+        raise UsageError(f"{flag}: unknown {unknown}{valid}")
+    if not items:
+        raise UsageError(f"{flag} must be a comma list of at least one name{valid} (got {text!r})")
+    return items
+
+
+def check_policy(name: str, task: str, flag: str = "--controller") -> Path:
+    """``name`` as a policy file that flies ``task`` (its own task or one that ``task`` derives from), checked
+    before any env is built, else UsageError naming the flag, the file and what is wrong with it."""
+    from ..envs.tasks import TASK_SPECS, task_spec
+    from ..policies import read_policy
+
+    path = Path(name)
+    if "\0" in name or not path.exists():
+        raise UsageError(f"{flag} {name!r} is neither a controller of the task nor a policy file")
+    try:
+        _, meta = read_policy(path)
+    except ValueError as exc:  # FileFormatError: one line naming the file and the defect
+        raise UsageError(f"{flag}: {exc}") from None
+    trained_on = meta.get("task") if isinstance(meta, dict) else None
+    spec, parent = task_spec(task), TASK_SPECS.get(str(trained_on))
+    if trained_on not in (None, task) and (parent is None or not issubclass(spec.task, parent.task)):
+        raise UsageError(f"{flag} {name!r}: a policy of task {trained_on!r} does not fly task {task!r}")
+    return path
+
+
+def check_controller(name: str, task: str, airframe: str, flag: str = "--controller") -> str:
+    """The label of controller ``name`` for ``task`` on ``airframe`` (a baseline of the task, ppo or a policy
+    file that flies the task), else UsageError: checked before any env is built."""
+    from ..envs.tasks import task_spec
+    from ..evaluation.controllers import baseline_names
+    from ..policies import shipped_policy
+
+    if name in baseline_names():
+        try:
+            task_spec(task).controller(name)
+        except ValueError as exc:
+            raise UsageError(f"{flag}: {exc}") from None
+        return name
+    if name == "ppo":
+        try:
+            shipped_policy(task, airframe)
+        except ValueError as exc:
+            raise UsageError(f"{flag} ppo: {exc}") from None
+        return name
+    return check_policy(name, task, flag).stem
+
+
+def printable(text: str) -> str:
+    """``text`` with control and format characters (terminal escapes, bidi overrides, newlines, undecodable
+    bytes) written as escapes, so that printing it moves no cursor and recolours nothing."""
+    return "".join(ch.encode("unicode_escape", "backslashreplace").decode("ascii")
+                   if unicodedata.category(ch).startswith("C") else ch for ch in text)
+
+
+def one_line(message: object) -> str:
+    """The message of an error (or its type when it has none) as one printable line."""
+    text = " ".join(str(message).split()) if str(message).strip() else type(message).__name__
+    return printable(text)
+
+
+__all__ = ["MAX_AIRSPEED", "MAX_COUNT", "MAX_EPISODE_SECONDS", "MAX_HEIGHT", "UsageError", "bounded_float",
+           "bounded_int", "check_controller", "check_device", "check_policy", "comma_list", "emit",
+           "episode_seconds", "finite_float", "inside", "nonnegative_float", "nonnegative_int", "one_line",
+           "output_dir", "output_file", "positive_float", "positive_int", "printable"]

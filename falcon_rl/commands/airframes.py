@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 
-from ..airframe import list_airframes, load_airframe
 from ._common import emit
 
 NAME = "airframes"
@@ -16,6 +15,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from ..airframe import list_airframes, load_airframe
+
     rows = [load_airframe(name).summary() for name in list_airframes()]
     header = (f"{'name':<18}{'span m':>8}{'S m2':>9}{'AR':>7}{'taper':>7}{'mass kg':>10}"
               f"{'Vs':>6}{'Vcruise':>9}{'Vmax':>6}  powerplant")

@@ -14,43 +14,40 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-import torch
-from tqdm import tqdm
-
-from ..airframe import list_airframes, load_airframe
-from ..evaluation.ground_effect_table import format_table, ground_effect_table, rows_as_dicts
-from ..physics.trim import trim_level
-from ..viz.ground_effect import plot_ground_effect
-from ._common import UsageError, emit
+from ._common import bounded_int, comma_list, emit, inside, nonnegative_int, output_dir, positive_int
 
 NAME = "demo"
 HELP = "run the main job: shipped PPO vs LQR vs MPPI on the altitude protocol, trims, ground effect"
+CONTROLLERS = ("ppo", "lqr", "mppi", "trim")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", default="runs/demo", help="output folder")
     parser.add_argument("--airframe", default="volantex_ranger", help="airframe of the altitude protocol")
-    parser.add_argument("--controllers", default="ppo,lqr,mppi", help="comma list of ppo, lqr, mppi, trim")
-    parser.add_argument("--episodes", type=int, default=100, help="protocol episodes per controller")
-    parser.add_argument("--mppi-episodes", type=int, default=5, help="protocol episodes for MPPI (slow)")
+    parser.add_argument("--controllers", default="ppo,lqr,mppi",
+                        help=f"comma list of {', '.join(CONTROLLERS)} (default ppo,lqr,mppi)")
+    parser.add_argument("--episodes", type=positive_int, default=100, help="protocol episodes per controller")
+    parser.add_argument("--mppi-episodes", type=positive_int, default=5,
+                        help="protocol episodes for MPPI (slow)")
     parser.add_argument("--train", action="store_true",
                         help="train PPO from scratch instead of using the shipped one")
-    parser.add_argument("--frames", type=int, default=None, help="with --train: env steps (recipe default)")
-    parser.add_argument("--backend", choices=["torch", "warp"], default="warp")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--threads", type=int, default=1, help="torch CPU threads")
+    parser.add_argument("--frames", type=positive_int, default=None,
+                        help="with --train: env steps (recipe default)")
+    parser.add_argument("--backend", choices=["torch", "warp"], default="warp",
+                        help="simulator (default warp)")
+    parser.add_argument("--seed", type=nonnegative_int, default=0)
+    parser.add_argument("--threads", type=bounded_int(1, 4096), default=1, help="torch CPU threads")
 
 
-def _protocol(args: argparse.Namespace, out: Path) -> tuple[list, list[Path], dict]:
+def _protocol(args: argparse.Namespace, controllers: list[str], airframe: str, out: Path
+              ) -> tuple[list, list[Path], dict]:
     """Score the controllers on the altitude protocol; returns (results, figures, training summary)."""
+    from tqdm import tqdm
+
     from ..evaluation.controllers import make_controller
     from ..evaluation.protocols import altitude_protocol
     from ..viz.evaluation import plot_altitude
 
-    controllers = [c for c in args.controllers.split(",") if c]
-    unknown = set(controllers) - {"ppo", "lqr", "mppi", "trim"}
-    if unknown:
-        raise UsageError(f"unknown controllers {sorted(unknown)}; choose from ppo, lqr, mppi, trim")
     training: dict = {}
     ppo_source = "ppo"
     if "ppo" in controllers and not args.train:
@@ -76,11 +73,19 @@ def _protocol(args: argparse.Namespace, out: Path) -> tuple[list, list[Path], di
         result = altitude_protocol(args.airframe, name.upper(), lambda env, s=source: make_controller(s, env),
                                    episodes=episodes, seed=args.seed, backend=args.backend)
         results.append(result)
-        figures.append(plot_altitude(result, out / f"altitude_{args.airframe}_{name}.png"))
+        figures.append(plot_altitude(result, inside(out, f"altitude_{airframe}_{name}.png", "figure name")))
     return results, figures, training
 
 
 def _trims_and_ground_effect(out: Path) -> tuple[list[str], dict]:
+    """Trim at cruise and the ground-effect table of every shipped airframe: (report lines, document)."""
+    from tqdm import tqdm
+
+    from ..airframe import list_airframes, load_airframe
+    from ..evaluation.ground_effect_table import format_table, ground_effect_table, rows_as_dicts
+    from ..physics.trim import trim_level
+    from ..viz.ground_effect import plot_ground_effect
+
     trims, tables = {}, {}
     for name in tqdm(list_airframes(), desc="trim + ground-effect table", unit="airframe"):
         airframe = load_airframe(name)
@@ -102,15 +107,16 @@ def _trims_and_ground_effect(out: Path) -> tuple[list[str], dict]:
 
 
 def run(args: argparse.Namespace) -> int:
+    import torch
+
+    from ..airframe import load_airframe
     from ..evaluation.report import result_document, write_report
 
-    if args.episodes < 1 or args.mppi_episodes < 1:
-        raise UsageError("--episodes and --mppi-episodes must be >= 1")
-    if args.threads > 0:
-        torch.set_num_threads(args.threads)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    results, figures, training = _protocol(args, out)
+    controllers = comma_list(args.controllers, "--controllers", CONTROLLERS)
+    airframe = load_airframe(args.airframe).name
+    out = output_dir(args.out)
+    torch.set_num_threads(args.threads)
+    results, figures, training = _protocol(args, controllers, airframe, out)
     source = "trained here from scratch" if args.train else "shipped (falcon_rl/policies)"
     if not any(r.controller == "PPO" for r in results):
         source = "not scored: no shipped policy for this airframe"
@@ -118,7 +124,7 @@ def run(args: argparse.Namespace) -> int:
     trim_lines, trim_doc = _trims_and_ground_effect(out)
     text = report.read_text()
     head, _, tail = text.partition("## Altitude acquisition and hold")
-    text = (head + f"## Altitude acquisition and hold ({args.airframe}; PPO {source})" + tail
+    text = (head + f"## Altitude acquisition and hold ({airframe}; PPO {source})" + tail
             + "\n" + "\n".join(trim_lines))
     report.write_text(text)
     doc = {"altitude": [result_document(r) for r in results], **trim_doc, "report": str(report),

@@ -3,12 +3,8 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
-from ..airframe import load_airframe
-from ..evaluation.ground_effect_table import format_table, ground_effect_table, rows_as_dicts
-from ..viz.ground_effect import plot_ground_effect
-from ._common import UsageError, emit
+from ._common import MAX_AIRSPEED, bounded_float, emit, inside, output_dir
 
 NAME = "ge-table"
 HELP = "ground-effect thrust table (trim on/off and lifting-line theory at h/b 0.25..6) + PNG"
@@ -16,17 +12,21 @@ HELP = "ground-effect thrust table (trim on/off and lifting-line theory at h/b 0
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--airframe", required=True, help="shipped name or path to a JSON file")
-    parser.add_argument("--airspeed", type=float, default=None, help="m/s (default: cruise)")
+    parser.add_argument("--airspeed", type=bounded_float(0.0, MAX_AIRSPEED, "m/s"), default=None,
+                        help="m/s (default: cruise)")
     parser.add_argument("--ground-effect-model", choices=["induced", "paper"], default="induced")
-    parser.add_argument("--out", default="runs/ge-table", help="folder for the PNG")
+    parser.add_argument("--out", default="runs/ge-table", help="folder for the PNG (default runs/ge-table)")
 
 
 def run(args: argparse.Namespace) -> int:
+    from ..airframe import load_airframe
+    from ..evaluation.ground_effect_table import format_table, ground_effect_table, rows_as_dicts
+    from ..viz.ground_effect import plot_ground_effect
+
     airframe = load_airframe(args.airframe)
-    if args.airspeed is not None and not args.airspeed > 0:
-        raise UsageError(f"--airspeed must be > 0, got {args.airspeed}")
+    figure = inside(output_dir(args.out), f"{airframe.name}.png", "airframe name")
     rows = ground_effect_table(airframe, args.airspeed, model=args.ground_effect_model)
-    png = plot_ground_effect({airframe.name: rows}, Path(args.out) / f"{airframe.name}.png")
+    png = plot_ground_effect({airframe.name: rows}, figure)
     doc = {"airframe": airframe.name, "ground_effect_model": args.ground_effect_model,
            "airspeed_mps": args.airspeed or airframe.envelope.cruise_speed,
            "rows": rows_as_dicts(rows), "plot": str(png)}

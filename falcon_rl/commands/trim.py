@@ -4,9 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from ..airframe import load_airframe
-from ..physics.trim import trim_level
-from ._common import UsageError, emit
+from ._common import MAX_AIRSPEED, MAX_HEIGHT, bounded_float, emit
 
 NAME = "trim"
 HELP = "trim straight and level flight: alpha, elevator, throttle, thrust, drag, C_L, C_D, C_Di"
@@ -14,20 +12,21 @@ HELP = "trim straight and level flight: alpha, elevator, throttle, thrust, drag,
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--airframe", required=True, help="shipped name or path to a JSON file")
-    parser.add_argument("--airspeed", type=float, default=None, help="m/s (default: cruise)")
-    parser.add_argument("--height", type=float, default=100.0, help="m above ground")
+    parser.add_argument("--airspeed", type=bounded_float(0.0, MAX_AIRSPEED, "m/s"), default=None,
+                        help="m/s (default: cruise)")
+    parser.add_argument("--height", type=bounded_float(0.0, MAX_HEIGHT, "m"), default=100.0,
+                        help="m above ground (default 100)")
     parser.add_argument("--no-ground-effect", action="store_true", help="switch ground effect off")
     parser.add_argument("--ground-effect-model", choices=["induced", "paper"], default="induced",
                         help="induced-drag-only correction (default) or the paper's whole-drag form")
 
 
 def run(args: argparse.Namespace) -> int:
+    from ..airframe import load_airframe
+    from ..physics.trim import trim_level
+
     airframe = load_airframe(args.airframe)
     airspeed = airframe.envelope.cruise_speed if args.airspeed is None else args.airspeed
-    if not airspeed > 0:
-        raise UsageError(f"--airspeed must be > 0, got {airspeed}")
-    if not args.height > 0:
-        raise UsageError(f"--height must be > 0, got {args.height}")
     ge = False if args.no_ground_effect else args.ground_effect_model
     row = trim_level(airframe, airspeed, args.height, ground_effect=ge).row(0)
     doc = {"airframe": airframe.name, "ground_effect": ge or "off", **row}

@@ -7,11 +7,12 @@ Level flight: pitch = alpha, roll = 0, body rates 0, still air.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import torch
 
-from ..airframe import AERO_COEFFICIENTS, Airframe
+from ..airframe import AERO_COEFFICIENTS, SURFACES, Airframe
 from . import state as S
 from .actuators import normalised_command
 from .dynamics import derivative, evaluate
@@ -135,24 +136,42 @@ def trim_level(
     return _result(z, v, h, p, m, err)
 
 
+def _envelope_hint(airframe: Airframe, airspeed: float) -> str:
+    """Why a trim may not exist at ``airspeed``: below the stall speed (naming the stall angle) or above
+    the maximum speed of the airframe's envelope; "" inside the envelope."""
+    env = airframe.envelope
+    if airspeed < env.stall_speed:
+        return (f"; {airspeed:.2f} m/s is below the stall speed {env.stall_speed:.2f} m/s (the wing stalls "
+                f"at alpha {math.degrees(airframe.aero.alpha_stall):.1f} deg)")
+    if airspeed > env.max_speed:
+        return f"; {airspeed:.2f} m/s is above the maximum speed {env.max_speed:.2f} m/s"
+    return ""
+
+
 def _check(airframe: Airframe, z, v, h, err, tol, p: ModelParams) -> None:
     lo, hi = airframe.aero.alpha_range
+    stall = math.degrees(airframe.aero.alpha_stall)
     for i in range(z.shape[0]):
         where = f"{airframe.name} at {float(v[i]):.2f} m/s, {float(h[i]):.2f} m"
+        hint = _envelope_hint(airframe, float(v[i]))
         if not torch.isfinite(z[i]).all():
-            raise TrimError(f"trim diverged for {where}")
-        if not lo <= float(z[i, _ALPHA]) <= hi:
-            raise TrimError(f"no trim for {where}: alpha {float(z[i, _ALPHA]):.3f} rad leaves the aero "
-                            f"table's range [{lo}, {hi}] (below stall speed "
-                            f"{airframe.envelope.stall_speed} m/s?)")
+            raise TrimError(f"trim diverged for {where}{hint}")
+        alpha = float(z[i, _ALPHA])
+        if not lo <= alpha <= hi:
+            raise TrimError(f"no trim for {where}: needs alpha {math.degrees(alpha):.1f} deg, outside the "
+                            f"aero table's [{math.degrees(lo):.1f}, {math.degrees(hi):.1f}] deg (stall at "
+                            f"{stall:.1f} deg){hint}")
         if not 0.0 <= float(z[i, _THROTTLE]) <= 1.0:
             throttle = float(z[i, _THROTTLE])
-            raise TrimError(f"no trim for {where}: needs throttle {throttle:.3f}, outside [0, 1]")
-        surfaces = z[i, _SURFACES]
-        if not (p.surface_min[i] <= surfaces).all() or not (surfaces <= p.surface_max[i]).all():
-            raise TrimError(f"no trim for {where}: surfaces {surfaces.tolist()} rad exceed limits")
+            raise TrimError(f"no trim for {where}: needs throttle {throttle:.3f}, outside [0, 1]{hint}")
+        for j, surface in enumerate(SURFACES):
+            angle, low, high = (math.degrees(float(t)) for t in (z[i, _SURFACES][j], p.surface_min[i, j],
+                                                                 p.surface_max[i, j]))
+            if not low <= angle <= high:
+                raise TrimError(f"no trim for {where}: the {surface} saturates (needs {angle:.1f} deg, its "
+                                f"limits are [{low:.1f}, {high:.1f}] deg){hint}")
         if err[i] > max(1e3 * tol, 1e-6):
-            raise TrimError(f"trim did not converge for {where} (residual {float(err[i]):.3g})")
+            raise TrimError(f"trim did not converge for {where} (residual {float(err[i]):.3g}){hint}")
 
 
 def _result(z, v, h, p: ModelParams, m: int, err) -> TrimResult:
