@@ -168,7 +168,7 @@ def list_airframes() -> list[str]:
 def load_airframe(name_or_path: str | Path) -> Airframe:
     """Load and validate an airframe by shipped name (``"navion"``) or by JSON path."""
     path = _resolve(name_or_path)
-    return parse_airframe(_read_json(path), path)
+    return parse_airframe(read_json_strictly(path), path)
 
 
 class _RefusedError(ValueError):
@@ -200,37 +200,37 @@ def _first_nonfinite(document: Any) -> str | None:
     return None
 
 
-def _read_json(path: Path) -> Any:
+def read_json_strictly(path: Path, error: type[Exception] = AirframeError, kind: str = "airframe") -> Any:
     """The decoded document of ``path``: strict UTF-8 (a UTF-8 byte-order mark is skipped), strict JSON
     (no duplicate keys, NaN, Infinity or numbers beyond the float range), at most MAX_FILE_BYTES;
-    AirframeError naming the file (and the field) otherwise."""
+    ``error`` naming the file (and the field) otherwise; ``kind`` names the file's kind in messages."""
     try:
         size = path.stat().st_size
         if size > MAX_FILE_BYTES:
-            raise AirframeError(f"{path}: {size} bytes; an airframe file is at most {MAX_FILE_BYTES} bytes")
+            raise error(f"{path}: {size} bytes; a {kind} file is at most {MAX_FILE_BYTES} bytes")
         data = path.read_bytes()
     except OSError as exc:
-        raise AirframeError(f"{path}: cannot be read ({exc.strerror or type(exc).__name__})") from None
+        raise error(f"{path}: cannot be read ({exc.strerror or type(exc).__name__})") from None
     if data.startswith((b"\xff\xfe", b"\xfe\xff")):
-        raise AirframeError(f"{path}: UTF-16 text; save the airframe file as UTF-8")
+        raise error(f"{path}: UTF-16 text; save the {kind} file as UTF-8")
     try:
         text = data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
-        raise AirframeError(f"{path}: not UTF-8 text (byte 0x{data[exc.start]:02x} at offset {exc.start})"
+        raise error(f"{path}: not UTF-8 text (byte 0x{data[exc.start]:02x} at offset {exc.start})"
                             ) from None
     try:
         document = json.loads(text, object_pairs_hook=_unique_keys)
     except json.JSONDecodeError as exc:
-        raise AirframeError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+        raise error(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
     except _RefusedError as exc:
-        raise AirframeError(f"{path}: {exc}") from None
+        raise error(f"{path}: {exc}") from None
     except RecursionError:
-        raise AirframeError(f"{path}: JSON nested too deep (an airframe file nests a few levels)") from None
+        raise error(f"{path}: JSON nested too deep (a {kind} file nests a few levels)") from None
     except ValueError as exc:  # an integer literal of thousands of digits
-        raise AirframeError(f"{path}: not valid JSON ({exc})") from None
+        raise error(f"{path}: not valid JSON ({exc})") from None
     where = _first_nonfinite(document)
     if where is not None:
-        raise AirframeError(f"{path}: field '{where}': must be finite (NaN and Infinity are not JSON)")
+        raise error(f"{path}: field '{where}': must be finite (NaN and Infinity are not JSON)")
     return document
 
 

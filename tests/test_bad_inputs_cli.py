@@ -206,7 +206,16 @@ CLI_CASES = [
     row("derive missing geometry", "airframe derive {tmp}/missing.json", "geometry file not found"),
     row("derive geometry is a folder", "airframe derive {dir}", "geometry file not found"),
     row("derive geometry not JSON", "airframe derive {bad_af}", "bad.json: not valid JSON"),
-    row("derive geometry not UTF-8", "airframe derive {latin1_json}", "latin1.json: malformed geometry file"),
+    row("train negative obs delay", ["train", "ppo", "--out", "{tmp}/t", "--set",
+                                     'env_options={{"obs_delay_ms": -5}}'], "delays must be finite numbers"),
+    row("train reversed delay range", ["train", "ppo", "--out", "{tmp}/t", "--set",
+                                       'env_options={{"action_delay_ms": (50, 10)}}'], "low <= high"),
+    row("train huge obs delay", ["train", "ppo", "--out", "{tmp}/t", "--set",
+                                 'env_options={{"obs_delay_ms": 1e12}}'], "delays must be finite numbers"),
+    row("derive geometry not UTF-8", "airframe derive {latin1_json}", "latin1.json: not UTF-8 text"),
+    row("derive geometry duplicate key", "airframe derive {geom_duplicate}", "duplicate key 'name'"),
+    row("derive geometry NaN", "airframe derive {geom_nan}", "must be finite"),
+    row("derive geometry a list", "airframe derive {geom_list}", "one JSON object"),
     row("derive name with escape codes", "airframe derive {geom_escape}", r"field 'name': contains control characters: \x1b[2J"),
     row("derive name with a path", "airframe derive {geom_path}", "field 'name' '../evil.json' must be a plain name"),
     row("derive out is a folder", "airframe derive {geometry} --out {dir}", "is a directory, not a file name"),
@@ -228,6 +237,9 @@ def paths(tmp_path_factory) -> dict[str, str]:
     (tmp / "empty.pt").write_bytes(b"")
     (tmp / "plain.pt").write_bytes(pickle.dumps({"weights": [1, 2, 3]}))
     (tmp / "bad.json").write_text("{nope")
+    (tmp / "geom_duplicate.json").write_text('{"name": "a", "name": "b"}')
+    (tmp / "geom_nan.json").write_text('{"name": "a", "mass": NaN}')
+    (tmp / "geom_list.json").write_text("[1, 2]")
     (tmp / "latin1.json").write_bytes('{"name": "caf\u00e9"}'.encode("latin-1"))
     geometry = json.loads((ROOT / "airframes" / "geometry" / "volantex_ranger.json").read_text())
     for stem, name in (("escape", "\x1b[2Jwiped"), ("path", "../evil")):
@@ -237,7 +249,8 @@ def paths(tmp_path_factory) -> dict[str, str]:
             "pickle_pt": str(tmp / "plain.pt"), "bad_af": str(tmp / "bad.json"),
             "latin1_json": str(tmp / "latin1.json"), "attitude_pt": str(POLICIES / "ppo_attitude_volantex_ranger.pt"),
             "geometry": str(ROOT / "airframes" / "geometry" / "volantex_ranger.json"),
-            "geom_escape": str(tmp / "geom_escape.json"), "geom_path": str(tmp / "geom_path.json")}
+            "geom_escape": str(tmp / "geom_escape.json"), "geom_path": str(tmp / "geom_path.json"),
+            **{f"geom_{k}": str(tmp / f"geom_{k}.json") for k in ("duplicate", "nan", "list")}}
 
 
 def assert_one_line(capsys, argv: list[str], needle: str) -> str:

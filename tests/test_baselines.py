@@ -61,7 +61,8 @@ def test_gain_schedules_stabilise_every_trim_point(name, request):
 
 
 def test_altitude_lqr_climbs_to_the_reference(ranger):
-    env = make_env("altitude", "volantex_ranger", num_envs=4, seed=3, episode_seconds=12.0, backend="warp", decimation=1)
+    env = make_env("altitude", "volantex_ranger", num_envs=4, seed=3, episode_seconds=12.0, backend="warp",
+                   decimation=1)
     policy = AltitudeLQR(ranger, dt=env.env_dt)
     with torch.no_grad():
         rollout = env.rollout(1200, policy, break_when_any_done=False)

@@ -25,10 +25,11 @@ Top-level fields (all required unless marked optional):
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+
+from ..airframe import read_json_strictly
 
 ROLES = ("main", "horizontal_tail", "vertical_tail")
 SURFACE_KINDS = ("elevator", "aileron", "rudder")
@@ -164,10 +165,9 @@ def load_geometry(path: str | Path) -> GeometrySpec:
     path = Path(path)
     if not path.is_file():
         raise GeometryError(f"{path}: geometry file not found")
-    try:
-        doc = json.loads(path.read_text())
-    except json.JSONDecodeError as exc:
-        raise GeometryError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from exc
+    doc = read_json_strictly(path, GeometryError, "geometry")  # strict UTF-8 JSON: no duplicates, NaN
+    if not isinstance(doc, dict):
+        raise GeometryError(f"{path}: a geometry file is one JSON object, got {type(doc).__name__}")
     for key in ("name", "reference", "wings", "mass", "propulsion", "actuators", "envelope", "provenance"):
         _need(doc, key, "", path)
     ref = doc["reference"]

@@ -24,7 +24,7 @@ from dataclasses import asdict, dataclass, field, fields
 import numpy as np
 import torch
 from torch import nn
-from torchrl.envs import Compose, ExcludeTransform, RewardSum, TransformedEnv
+from torchrl.envs import ExcludeTransform, RewardSum, TransformedEnv
 
 from ..envs import make_env, task_spec
 from ..policies.format import ACTIVATIONS
@@ -293,7 +293,11 @@ def make_train_env(cfg: TrainConfig, num_envs: int | None = None, seed_offset: i
     except TypeError as exc:  # an unknown env option
         raise ValueError(f"env_options: {exc}") from None
     unused = [key for key in base.observation_spec.keys(True, True) if key[0] in ("state", "task")]
-    return TransformedEnv(base, Compose(ExcludeTransform(*unused), RewardSum()))
+    if not isinstance(base, TransformedEnv):
+        base = TransformedEnv(base)  # robustness transforms come as one; append instead of nesting
+    base.append_transform(ExcludeTransform(*unused))
+    base.append_transform(RewardSum())
+    return base
 
 
 def stagger_episodes(env: TransformedEnv, seed: int) -> None:

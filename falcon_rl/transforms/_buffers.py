@@ -3,6 +3,7 @@ transforms share."""
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import torch
@@ -158,19 +159,35 @@ def reset_mask(tensordict: TensorDictBase | None, num_envs: int, device: torch.d
     return mask.reshape(num_envs).to(device)
 
 
+#: Longest delay a transform accepts, ms (its ring buffer holds this many env steps per env).
+MAX_DELAY_MS = 10_000.0
+
+
+def delay_bounds(spec: object) -> tuple[float, float]:
+    """(low, high) ms of a fixed delay or a (low, high) range; ValueError (one line) unless both are
+    finite numbers in [0, MAX_DELAY_MS] with low <= high."""
+    pair = (spec, spec) if isinstance(spec, int | float) else spec
+    if not (isinstance(pair, tuple | list) and len(pair) == 2):
+        raise ValueError(f"a delay is milliseconds or a (low, high) pair of them, got {spec!r}")
+    for value in pair:
+        if not (isinstance(value, int | float) and math.isfinite(value) and 0.0 <= value <= MAX_DELAY_MS):
+            raise ValueError(f"delays must be finite numbers in [0, {MAX_DELAY_MS:g}] ms, got {spec!r}")
+    low, high = float(pair[0]), float(pair[1])
+    if high < low:
+        raise ValueError(f"delay range must be (low, high) with low <= high, got {spec!r}")
+    return low, high
+
+
 def delay_steps(delay_ms: float, env_dt: float) -> int:
     """A delay in ms as a whole number of env steps (rounded)."""
-    if delay_ms < 0:
-        raise ValueError(f"delays must be >= 0 ms, got {delay_ms}")
-    return round(delay_ms / 1000.0 / env_dt)
+    low, _ = delay_bounds(delay_ms)
+    return round(low / 1000.0 / env_dt)
 
 
 def delay_range(spec: float | tuple[float, float], env_dt: float) -> tuple[int, int]:
-    """(low, high) steps of a fixed delay or of a (low, high) range in ms."""
-    low, high = (spec, spec) if isinstance(spec, int | float) else spec
-    if high < low:
-        raise ValueError(f"delay range must be (low, high) with low <= high, got {spec}")
-    return delay_steps(float(low), env_dt), delay_steps(float(high), env_dt)
+    """(low, high) steps of a fixed delay or of a (low, high) range in ms (see :func:`delay_bounds`)."""
+    low, high = delay_bounds(spec)
+    return round(low / 1000.0 / env_dt), round(high / 1000.0 / env_dt)
 
 
 def draw_delays(low: int, high: int, num_envs: int, generator: torch.Generator,

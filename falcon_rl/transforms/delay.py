@@ -25,7 +25,7 @@ import torch
 from tensordict import TensorDictBase
 from torchrl.data import Composite
 
-from ._buffers import DelayLine, SeededTransform, delay_range, draw_delays, reset_mask
+from ._buffers import DelayLine, SeededTransform, delay_bounds, delay_range, draw_delays, reset_mask
 from ._env import flight_env
 from .action_check import check_action
 
@@ -35,6 +35,7 @@ class _DelayTransform(SeededTransform):
 
     def __init__(self, delay_ms: float | tuple[float, float], seed: int | None = None):
         super().__init__(seed)
+        delay_bounds(delay_ms)  # one-line ValueError now rather than at the first reset
         self.delay_ms = delay_ms
         self._lines: dict = {}
         self._delays: torch.Tensor | None = None
