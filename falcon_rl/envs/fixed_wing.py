@@ -38,7 +38,7 @@ from __future__ import annotations
 import secrets
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import Any, NamedTuple
 
 import torch
 from tensordict import TensorDict, TensorDictBase
@@ -107,6 +107,9 @@ class FixedWingEnvConfig:
     warp_cpu_threads: int | None = None
     #: Publish only observation, termination_reason, reward and done flags (lean replay buffers).
     lean: bool = False
+    #: Use the task's backend-fused step where it has one (``Task.fused_step``); False: always the
+    #: torch reference (``Task.step`` on ``Simulator.state``).
+    fused: bool = True
     #: Steady wind in NED, m/s.
     wind: tuple[float, float, float] | None = None
     #: Dryden turbulence: None (off), a MIL severity ("very_light", "light", "moderate", "severe"),
@@ -118,6 +121,18 @@ class FixedWingEnvConfig:
     model: ModelSwitches | Mapping[str, Any] | None = None
     #: The task's config; None takes the task's defaults (``TaskSpec.default_config()``).
     task_config: TaskConfig | None = field(default=None)
+
+
+class StepTensors(NamedTuple):
+    """One env step's outputs as tensors (``FixedWingEnv.step_tensors``)."""
+
+    observation: torch.Tensor  # [N, D], finite
+    reward: torch.Tensor  # [N], finite
+    reason: torch.Tensor  # [N] long, index in TERMINATION_REASONS (0: not terminated)
+    truncated: torch.Tensor  # [N] bool, horizon reached and not terminated
+    non_finite: torch.Tensor  # [N] bool, rows terminated as "non_finite"
+    state: TensorDictBase | None  # the simulator's state after the step ([N] scalars); None when lean
+    # and the task's fused step computed the outputs without it
 
 
 class FixedWingEnv(EnvBase):
@@ -245,18 +260,24 @@ class FixedWingEnv(EnvBase):
             self._set_seed(seed)
         n = self.config.num_envs
         mask = None if tensordict is None else tensordict.get("_reset", None)
-        if mask is None:
-            mask = torch.ones(n, dtype=torch.bool, device=self.device)
-        mask = mask.reshape(n).to(self.device)
+        observation, state = self.reset_tensors(mask)
+        reason = torch.zeros(n, dtype=torch.long, device=self.device)
+        no = torch.zeros(n, 1, dtype=torch.bool, device=self.device)
+        return self._output(observation, state, reason, no, reward=None)
+
+    def reset_tensors(self, mask: torch.Tensor | None = None) -> tuple[torch.Tensor, TensorDictBase]:
+        """Reset the rows of ``mask`` ([N] or [N, 1] bool; all when None) without TensorDicts in or out
+        (the core of ``reset``, for the Gymnasium paths): (observation [N, D], simulator state)."""
+        n = self.config.num_envs
+        mask = (torch.ones(n, dtype=torch.bool, device=self.device) if mask is None
+                else mask.reshape(n).to(self.device, torch.bool))
         initial = self.task.sample_initial(mask)
         state = self.sim.reset(initial, mask=mask)
-        if not isinstance(state, TensorDictBase):
+        if not isinstance(state, TensorDictBase):  # a facade whose reset returns nothing
             state = self.sim.state
         self.step_count.masked_fill_(mask, 0)
         self.task.after_reset(state, mask)
-        reason = torch.zeros(n, dtype=torch.long, device=self.device)
-        no = torch.zeros(n, 1, dtype=torch.bool, device=self.device)
-        return self._output(self.task.observe(state), state, reason, no, reward=None)
+        return self.task.observe(state), state
 
     def observe(self, state: TensorDictBase) -> torch.Tensor:
         """[N, D] observation the task makes of ``state`` (fields as under ("state", ...), e.g. a
@@ -265,21 +286,40 @@ class FixedWingEnv(EnvBase):
         return self.task.observe(simulator_layout(state, self.config.num_envs))
 
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
+        step = self.step_tensors(tensordict.get("action", None))
+        out = self._output(step.observation, step.state, step.reason, step.truncated.unsqueeze(-1),
+                           reward=step.reward.unsqueeze(-1))
+        if bool(step.non_finite.any()):
+            out = self._zero_non_finite(out, step.non_finite)
+        return out
+
+    def step_tensors(self, action: object) -> StepTensors:
+        """One env step without TensorDicts in or out (the core of ``step``, for the Gymnasium paths):
+        ``action`` [N, A] checked (see "Actions" in the module docstring); the observation and reward
+        it returns are finite (zeroed in "non_finite" rows), the state is the simulator's as it is."""
         n = self.config.num_envs
-        action, nan_action = check_action(tensordict.get("action", None), n, self.task.action_dim,
-                                          self.sim.dtype, self.device)
+        action, nan_action = check_action(action, n, self.task.action_dim, self.sim.dtype, self.device)
         command = self.task.command(action)
         self.sim.step(command, substeps=self.config.decimation)
-        state = self.sim.state
-        observation, reward, reason = self.task.step(state, action)
+        fused = self.task.fused_step(action) if self.config.fused else None
+        if fused is None:
+            state = self.sim.state
+            observation, reward, reason = self.task.step(state, action)
+            finite = _finite_rows(state, observation, reward)
+        else:
+            observation, reward, reason = fused
+            state = None if self.config.lean else self.sim.state
+            finite = (torch.isfinite(self.sim.x).all(-1) & torch.isfinite(observation).all(-1)
+                      & torch.isfinite(reward))
+            if state is not None:
+                finite &= _finite_rows(state, observation, reward)
         self.step_count += 1
         truncated = self.step_count >= self.max_episode_steps
-        non_finite = nan_action | ~_finite_rows(state, observation, reward)
+        non_finite = nan_action | ~finite
         reason = torch.where(non_finite, NON_FINITE, reason)
-        out = self._output(observation, state, reason, truncated.unsqueeze(-1), reward=reward.unsqueeze(-1))
-        if bool(non_finite.any()):
-            out = self._zero_non_finite(out, non_finite)
-        return out
+        observation = observation.masked_fill(non_finite[:, None] & ~torch.isfinite(observation), 0.0)
+        reward = reward.masked_fill(non_finite & ~torch.isfinite(reward), 0.0)
+        return StepTensors(observation, reward, reason, truncated & (reason == 0), non_finite, state)
 
     @staticmethod
     def _zero_non_finite(out: TensorDictBase, rows: torch.Tensor) -> TensorDictBase:
@@ -293,7 +333,7 @@ class FixedWingEnv(EnvBase):
 
         return out.apply(clean)
 
-    def _output(self, observation: torch.Tensor, state: TensorDictBase, reason: torch.Tensor,
+    def _output(self, observation: torch.Tensor, state: TensorDictBase | None, reason: torch.Tensor,
                 truncated: torch.Tensor, reward: torch.Tensor | None) -> TensorDictBase:
         """The step or reset output; ``reason`` [N] long (0: not terminated), ``truncated`` [N, 1]."""
         terminated = (reason > 0).unsqueeze(-1)

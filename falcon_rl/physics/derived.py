@@ -55,14 +55,15 @@ def pack_derived(fields: dict[str, torch.Tensor]) -> torch.Tensor:
     return torch.cat(columns, dim=-1)
 
 
-def split_derived(derived: torch.Tensor) -> dict[str, torch.Tensor]:
-    """Named fields (fresh tensors, [N] for width 1) of a [N, DERIVED_WIDTH] tensor, plus
-    ``ground_contact`` [N] bool."""
+def split_derived(derived: torch.Tensor, copy: bool = True) -> dict[str, torch.Tensor]:
+    """Named fields ([N] for width 1) of a [N, DERIVED_WIDTH] tensor, plus ``ground_contact`` [N] bool:
+    fresh tensors, or views of ``derived`` with ``copy=False`` (for a tensor the caller owns)."""
     if derived.shape[-1] != DERIVED_WIDTH:
         raise ValueError(f"derived tensor has {derived.shape[-1]} columns, expected {DERIVED_WIDTH}")
     out = {}
     for name, width in DERIVED_FIELDS:
         start = DERIVED_OFFSET[name]
-        out[name] = (derived[:, start] if width == 1 else derived[:, start:start + width]).clone()
+        column = derived[:, start] if width == 1 else derived[:, start:start + width]
+        out[name] = column.clone() if copy else column
     out["ground_contact"] = ground_contact(out["height"], out["lowest_tip_height"])
     return out

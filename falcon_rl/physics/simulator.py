@@ -389,21 +389,21 @@ class Simulator:
         """Named fields of the current state (clones), batch [N]; the derived quantities (air data,
         coefficients, thrust, contact, Euler angles) come from the engine (``derived.DERIVED_FIELDS``,
         on warp one kernel launch)."""
-        x = self.x
+        x = self.x.clone()  # one copy; the fields are views of it (and of one copy of the derived state)
         return TensorDict(
             {
-                "position_ned": x[:, S.POSITION].clone(),
-                "quaternion": x[:, S.QUATERNION].clone(),
-                "velocity_body": x[:, S.VELOCITY].clone(),
-                "angular_rate_body": x[:, S.ANGULAR_RATE].clone(),
-                "surface_rate": x[:, S.SURFACE_RATE].clone(),
-                "throttle": x[:, self.layout.throttle].clone(),
+                "position_ned": x[:, S.POSITION],
+                "quaternion": x[:, S.QUATERNION],
+                "velocity_body": x[:, S.VELOCITY],
+                "angular_rate_body": x[:, S.ANGULAR_RATE],
+                "surface_rate": x[:, S.SURFACE_RATE],
+                "throttle": x[:, self.layout.throttle],
                 "command": self.command.clone(),
                 "time": self.time.clone(),
                 "gust_velocity_body": self.gust_velocity_body.clone(),
                 "gust_rate_body": self.gust_rate_body.clone(),
                 "crashed": self.crashed.clone(),
-                **split_derived(self.engine.derived()),
+                **split_derived(self.engine.derived().clone(), copy=False),
             },
             batch_size=[self.num_envs],
             device=self.device,

@@ -222,6 +222,16 @@ class Task(ABC):
         self.previous_action.copy_(action)
         return self.observe(state), reward, reason
 
+    def fused_step(self, action: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor] | None:
+        """The backend-fused twin of :meth:`step`, or None when this task has none for the simulator's
+        backend (the default): the env then builds ``sim.state`` and calls :meth:`step`.
+
+        Called right after the physics sub-steps with the same checked ``action`` [N, A]; it reads the
+        simulator's buffers (``sim.x``, ``sim.engine.derived()``, ``sim.time``) instead of a state
+        TensorDict, updates every buffer :meth:`step` updates, exactly as :meth:`step` would (parity
+        tested), and returns (observation [N, D], reward [N], termination reason [N] long)."""
+        return None
+
     @abstractmethod
     def info(self) -> dict[str, torch.Tensor]:
         """Task quantities published under ("task", name): references and tracking errors."""
