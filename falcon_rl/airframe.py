@@ -207,7 +207,7 @@ def read_json_strictly(path: Path, error: type[Exception] = AirframeError, kind:
     try:
         size = path.stat().st_size
         if size > MAX_FILE_BYTES:
-            raise error(f"{path}: {size} bytes; a {kind} file is at most {MAX_FILE_BYTES} bytes")
+            raise error(f"{path}: {size} bytes; {kind} files are at most {MAX_FILE_BYTES} bytes")
         data = path.read_bytes()
     except OSError as exc:
         raise error(f"{path}: cannot be read ({exc.strerror or type(exc).__name__})") from None
@@ -225,7 +225,7 @@ def read_json_strictly(path: Path, error: type[Exception] = AirframeError, kind:
     except _RefusedError as exc:
         raise error(f"{path}: {exc}") from None
     except RecursionError:
-        raise error(f"{path}: JSON nested too deep (a {kind} file nests a few levels)") from None
+        raise error(f"{path}: JSON nested too deep ({kind} files nest a few levels)") from None
     except ValueError as exc:  # an integer literal of thousands of digits
         raise error(f"{path}: not valid JSON ({exc})") from None
     where = _first_nonfinite(document)

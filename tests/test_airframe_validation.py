@@ -169,7 +169,7 @@ RAW_CASES = [
     ("UTF-16 with BOM", lambda t: t.encode("utf-16"), r"UTF-16 text; save the airframe file as UTF-8"),
     ("UTF-16 big-endian BOM", lambda t: b"\xfe\xff" + t.encode("utf-16-be"), r"UTF-16 text"),
     ("NUL character", _replace('"name": "', '"name": "\x00'), r"not valid JSON \(Invalid control character"),
-    ("oversized file", lambda t: b" " * (MAX_FILE_BYTES + 1), r"bytes; an airframe file is at most"),
+    ("oversized file", lambda t: b" " * (MAX_FILE_BYTES + 1), r"bytes; airframe files are at most"),
 ]
 
 
