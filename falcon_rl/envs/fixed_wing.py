@@ -196,7 +196,8 @@ class FixedWingEnv(EnvBase):
                              ground_effect=config.ground_effect,
                              wind=None if config.wind is None else list(config.wind),
                              turbulence=turbulence, seed=config.seed, model=config.model, dtype=config.dtype,
-                             compile=config.compile, warp_cpu_threads=config.warp_cpu_threads)
+                             compile=config.compile, warp_cpu_threads=config.warp_cpu_threads,
+                             check_inputs=False)  # actions are checked by the env: no second check, no sync
         self.generator = make_generator(device, config.seed)
         self.env_dt = config.dt * decimation
         self.task = spec.task(task_config, self.sim, self.generator, self.env_dt, config.ground_effect)

@@ -371,13 +371,9 @@ class Simulator:
         rates, attitude and actuators as integrated) and are flagged in ``crashed``. No host sync."""
         x = self.engine.x
         below = S.height(x) < 0.0
-        stopped = x.clone()
-        stopped[:, S.DOWN_INDEX] = 0.0
-        stopped[:, S.VELOCITY] = 0.0
-        stopped[:, S.ANGULAR_RATE] = 0.0
-        result = torch.where(below[:, None], stopped, x)
-        result = torch.where(self.crashed[:, None], before, result)
-        x.copy_(result)
+        x.copy_(torch.where(self.crashed[:, None], before, x))
+        x[:, S.DOWN_INDEX].masked_fill_(below, 0.0)
+        x[:, S.VELOCITY.start:S.ANGULAR_RATE.stop].masked_fill_(below[:, None], 0.0)
         self.crashed |= below
 
     def reseed(self, seed: int) -> None:
