@@ -213,19 +213,20 @@ class WarpEngine(Engine):
         turb = self.turbulence
         if turb is not None and not turb.external_noise:
             turb.rng[1] += substeps
-        self._run(self._launches)
+        self.run(self._launches)
 
     def derived(self) -> torch.Tensor:
         """[N, DERIVED_WIDTH] derived state (engine-owned buffer, overwritten by the next call):
         one kernel launch per CPU slice."""
         if self._binding_key() != self._key:
             self.rebind()
-        self._run(self._evaluate_launches)
+        self.run(self._evaluate_launches)
         return self._evaluation
 
-    def _run(self, launches: list[Any]) -> None:
+    def run(self, launches: list[Any]) -> None:
         """Replay one launch, or the CPU chunks' launches from a queue that ``self.threads`` threads
-        (this one and pool workers) drain in parallel."""
+        (this one and pool workers) drain in parallel: the engine's own launches, or ones recorded per
+        ``self.slices`` by a task's fused step, on torch's current CUDA stream."""
         if len(launches) == 1:
             self._replay(launches[0])
             return

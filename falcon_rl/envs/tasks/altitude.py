@@ -35,12 +35,16 @@ Termination: ground contact, |alpha| > 1.5 alpha_stall or V_a < V_stall; truncat
 Published under ("task", ...): target_altitude h*, reference_altitude h_ref, reference_climb_rate,
 initial_altitude h_0, altitude_error h - h* (the error the metrics score) and reference_error
 h - h_ref.
+
+On the warp backend the env's step runs :meth:`AltitudeTask.fused_step`: all of the above after the
+physics in one Warp kernel (``altitude_warp``) instead of ``Simulator.state`` and ~100 torch ops.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import torch
 from tensordict import TensorDictBase
@@ -50,6 +54,9 @@ from ...physics import Simulator
 from ...physics import state as S
 from .base import Task, TaskConfig, gaussian, normalised_surfaces, taper
 from .registry import TRAINING_DECIMATION, TRIM_HOLD, Metric, TaskSpec, register_task
+
+if TYPE_CHECKING:
+    from .altitude_warp import FusedAltitudeStep
 
 
 @dataclass
@@ -111,6 +118,7 @@ class AltitudeTask(Task):
         self.reference_rate = torch.zeros(n, **kw)
         self.altitude_error = torch.zeros(n, **kw)  # h - h*
         self.reference_error = torch.zeros(n, **kw)  # h - h_ref
+        self._fused: FusedAltitudeStep | None = None  # bound on the first fused step
 
     # ------------------------------------------------------------------ episode start
     def sample_targets_and_offsets(self) -> tuple[torch.Tensor, torch.Tensor]:
@@ -221,6 +229,32 @@ class AltitudeTask(Task):
                 + cfg.survival_bonus
                 - cfg.w_overshoot * past_target)
 
+    # ------------------------------------------------------------------ fused step
+    def fused_step(self, action: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor] | None:
+        """:meth:`step` as one Warp kernel on the warp backend (``altitude_warp``; None elsewhere, or
+        when a subclass overrides a method of the step): (observation [N, 11], reward [N], reason [N]
+        long), buffers overwritten by the next call. With ``target_sequence`` the random shift is drawn
+        from the task's generator in torch before the launch, exactly as :meth:`step` draws it."""
+        if not self._fusable():
+            return None
+        fused = getattr(self, "_fused", None)  # absent in a task pickled before the fused step existed
+        if fused is None:
+            from .altitude_warp import FusedAltitudeStep
+
+            fused = self._fused = FusedAltitudeStep(self)
+        return fused(action)
+
+    def _fusable(self) -> bool:
+        """The warp backend, and the step is this class's (a subclass may change only the episode draws)."""
+        if self.sim.backend != "warp":
+            return False
+        cls = type(self)
+        return all(getattr(cls, name) is getattr(AltitudeTask, name) for name in _FUSED_METHODS)
+
+    def __getstate__(self) -> dict:
+        """The plain state: the fused step's Warp binding is made again after unpickling."""
+        return {**self.__dict__, "_fused": None}
+
     def info(self) -> dict[str, torch.Tensor]:
         return {
             "target_altitude": self.target.clone(),
@@ -231,6 +265,10 @@ class AltitudeTask(Task):
             "reference_error": self.reference_error.clone(),
         }
 
+
+#: The methods :meth:`AltitudeTask.fused_step` fuses: a subclass that overrides one falls back to ``step``.
+_FUSED_METHODS: tuple[str, ...] = ("step", "advance", "update", "reward", "observe", "termination_checks",
+                                   "termination_reason", "_update_reference", "_release_next_targets")
 
 #: The env this task is built with by default and every recipe trains on: control at 20 Hz
 #: (decimation 5 of the 10 ms physics step), so that gamma 0.99 looks ~5 s ahead; a survival bonus

@@ -229,7 +229,8 @@ class Task(ABC):
         Called right after the physics sub-steps with the same checked ``action`` [N, A]; it reads the
         simulator's buffers (``sim.x``, ``sim.engine.derived()``, ``sim.time``) instead of a state
         TensorDict, updates every buffer :meth:`step` updates, exactly as :meth:`step` would (parity
-        tested), and returns (observation [N, D], reward [N], termination reason [N] long)."""
+        tested), and returns (observation [N, D], reward [N], termination reason [N] long). The returned
+        tensors may be buffers that the next call overwrites (the env derives fresh ones)."""
         return None
 
     @abstractmethod

@@ -1,0 +1,223 @@
+"""The altitude task's fused Warp step (``AltitudeTask.fused_step``) against its torch reference
+(``Task.step`` on ``Simulator.state``): same observations, rewards, done flags, termination reasons,
+("task", ...) and ("state", ...) entries over rollouts with auto-resets, on several airframes,
+decimations, turbulence and wind (on CUDA too, skipped without a GPU); the lean fused env against the
+full one; crafted crashes; the fallbacks; pickling and re-binding after a parameter tensor is replaced."""
+
+from __future__ import annotations
+
+import math
+import pickle
+
+import pytest
+import torch
+from tensordict import TensorDictBase
+from torchrl.envs import EnvBase
+
+from falcon_rl import make_env
+from falcon_rl.envs.tasks import TERMINATION_CODE, AltitudeTask
+from falcon_rl.physics import state as S
+from falcon_rl.physics._warp import warp_cuda_available
+from falcon_rl.physics.rotations import euler_to_quaternion
+
+N = 8
+WIND = (3.0, -2.0, 0.5)
+#: float32 tolerance: the kernel and torch may differ in the last bits (exp, division by a scalar).
+TOL = {"rtol": 1e-5, "atol": 1e-5}
+#: Every buffer ``AltitudeTask.step`` updates.
+TASK_BUFFERS = ("time", "segment_time", "time_in_band", "error_integral", "previous_elevator",
+                "elevator_rate", "previous_action", "target", "initial_altitude", "segment_start",
+                "reference", "reference_rate", "altitude_error", "reference_error", "climb_rate")
+
+
+class HeldRandomPolicy:
+    """Random actions [N, A], mostly at the extremes, each held for ``hold`` steps plus a little noise:
+    they fly the envs into stalls and the ground, so rollouts see terminations and auto-resets."""
+
+    def __init__(self, shape: torch.Size, seed: int, hold: int):
+        self.generator = torch.Generator().manual_seed(seed)
+        self.shape, self.hold, self.count = shape, hold, 0
+        self.action = torch.zeros(shape)
+
+    def __call__(self, td: TensorDictBase) -> TensorDictBase:
+        if self.count % self.hold == 0:
+            self.action = (torch.rand(self.shape, generator=self.generator) * 2.4 - 1.2).clamp(-1.0, 1.0)
+        self.count += 1
+        noise = 0.1 * torch.randn(self.shape, generator=self.generator)
+        td["action"] = (self.action + noise).to(td.device)
+        return td
+
+
+def altitude_env(airframe: str = "navion", fused: bool = True, **options) -> EnvBase:
+    options = {"num_envs": N, "seed": 3, "wind": WIND, "episode_seconds": 4.0, **options}
+    return make_env("altitude", airframe, backend="warp", fused=fused, **options)
+
+
+def roll(env: EnvBase, steps: int, hold_seconds: float = 2.0) -> TensorDictBase:
+    """A rollout of ``steps`` steps with auto-resets, actions held ``hold_seconds``."""
+    hold = max(1, round(hold_seconds / env.control_dt))
+    return env.rollout(steps, HeldRandomPolicy(env.action_spec.shape, 0, hold), break_when_any_done=False)
+
+
+def assert_same_rollout(expected: TensorDictBase, actual: TensorDictBase, keys: list | None = None) -> None:
+    """Every entry (or those of ``keys``) equal: floats to float32 tolerance, flags and codes exactly."""
+    for key in keys if keys is not None else expected.keys(True, True):
+        a, b = expected[key], actual[key]
+        if a.is_floating_point():
+            torch.testing.assert_close(b, a, **TOL, msg=lambda m, key=key: f"{key}: {m}")
+        else:
+            assert torch.equal(a, b), key
+
+
+@pytest.mark.parametrize(("airframe", "decimation", "turbulence"), [
+    ("navion", 5, None), ("navion", 1, "moderate"), ("volantex_ranger", 5, "moderate"),
+    ("volantex_ranger", 1, None), ("airship_v7", 5, None), ("airship_v7", 1, "moderate"),
+])
+def test_fused_rollout_matches_the_torch_step(airframe, decimation, turbulence):
+    steps = 300 if decimation == 5 else 450
+    envs = {fused: altitude_env(airframe, fused, decimation=decimation, turbulence=turbulence)
+            for fused in (False, True)}
+    runs = {fused: roll(env, steps) for fused, env in envs.items()}
+    reference = runs[False]
+    assert_same_rollout(reference, runs[True])
+    for name in TASK_BUFFERS:
+        expected, actual = getattr(envs[False].task, name), getattr(envs[True].task, name)
+        torch.testing.assert_close(actual, expected, **TOL, msg=lambda m, name=name: f"{name}: {m}")
+    assert set(reference.keys(True, True)) == set(runs[True].keys(True, True))
+    reasons = reference["next", "termination_reason"]
+    assert (reasons > 0).any(), "the rollout should see terminations"
+    assert reference["next", "truncated"].any(), "the rollout should see truncations"
+
+
+def test_lean_fused_env_streams_what_the_full_env_does():
+    full = roll(altitude_env("airship_v7", fused=False, decimation=5, turbulence="light"), 300)
+    lean = roll(altitude_env("airship_v7", fused=True, decimation=5, turbulence="light", lean=True), 300)
+    keys = [*(("next", k) for k in ("observation", "reward", "done", "terminated", "truncated",
+                                      "termination_reason")), "observation", "done"]
+    assert_same_rollout(full, lean, keys)
+    assert lean.get(("next", "state"), None) is None and (full["next", "termination_reason"] > 0).any()
+
+
+def test_target_sequence_draws_and_releases_as_the_torch_step():
+    options = {"target_sequence": True, "capture_band": 1000.0, "hold_seconds": 0.3, "decimation": 5}
+    runs = {fused: roll(altitude_env("volantex_ranger", fused, **options), 200) for fused in (False, True)}
+    assert_same_rollout(runs[False], runs[True])
+    released = runs[False]["next", "task", "target_altitude"] != runs[False]["task", "target_altitude"]
+    assert released.sum() > runs[False]["next", "done"].sum(), "targets should be released mid-episode"
+
+
+def test_climb_descend_task_is_fused_too():
+    runs = {fused: roll(make_env("climb_descend", "navion", num_envs=N, seed=5, fused=fused,
+                                 episode_seconds=4.0), 120) for fused in (False, True)}
+    assert_same_rollout(runs[False], runs[True])
+
+
+def crafted_states(env: EnvBase) -> list[int]:
+    """Write crashing rows into the env's state (after a reset); returns the reasons expected after
+    one step: CG contact, wing-tip contact, alpha stall, speed stall, NaN, flying, and two rows where
+    several apply (the first in TERMINATION_REASONS wins)."""
+    x = env.sim.x
+    deg = math.pi / 180.0
+
+    def put(row: int, height: float, velocity: tuple[float, float, float], roll: float = 0.0) -> None:
+        x[row, S.DOWN_INDEX] = -height
+        x[row, S.QUATERNION] = euler_to_quaternion(torch.tensor([[roll * deg, 0.0, 0.0]]))[0]
+        x[row, S.VELOCITY] = torch.tensor(velocity)
+        x[row, S.ANGULAR_RATE] = 0.0
+
+    put(0, 0.02, (53.0, 0.0, 3.0))  # sinks through the ground
+    put(1, 1.5, (53.0, 0.0, 0.0), roll=80.0)  # CG above ground, lower wing tip below
+    put(2, 100.0, (37.0, 0.0, 37.0))  # alpha 45 deg > 1.5 x 20 deg
+    put(3, 100.0, (10.0, 0.0, 0.0))  # 10 m/s < V_stall 25.3 m/s
+    x[4, S.ANGULAR_RATE] = float("nan")
+    put(6, 0.02, (10.0, 0.0, 3.0))  # ground contact and speed stall
+    put(7, 100.0, (12.0, 0.0, 14.0))  # alpha stall and speed stall
+    code = TERMINATION_CODE
+    return [code["ground_contact"], code["ground_contact"], code["alpha_stall"], code["speed_stall"],
+            code["non_finite"], 0, code["ground_contact"], code["alpha_stall"]]
+
+
+@pytest.mark.parametrize("lean", [False, True])
+def test_crafted_crashes_give_the_same_reasons(lean):
+    out = {}
+    for fused in (False, True):
+        env = altitude_env("navion", fused, decimation=1, wind=None, lean=lean)
+        td = env.reset()
+        expected = crafted_states(env)
+        td["action"] = env.trim_action().expand(N, -1).clone()
+        out[fused] = env.step(td)["next"]
+        assert out[fused]["termination_reason"].flatten().tolist() == expected
+    assert_same_rollout(out[False], out[True])
+    for value in out[True].values(True, True):
+        assert not value.is_floating_point() or torch.isfinite(value).all()
+
+
+def test_fused_step_falls_back_off_warp_and_for_a_changed_step():
+    torch_env = make_env("altitude", "navion", num_envs=2, backend="torch", seed=0)
+    assert torch_env.task.fused_step(torch.zeros(2, 2)) is None
+
+    class Changed(AltitudeTask):
+        def reward(self, state, action):
+            return super().reward(state, action) + 1.0
+
+    warp_env = altitude_env("navion")
+    assert warp_env.task.fused_step(torch.zeros(N, 2)) is not None
+    warp_env.task.__class__ = Changed
+    assert warp_env.task.fused_step(torch.zeros(N, 2)) is None
+
+
+def test_pickled_fused_env_continues_the_same_stream():
+    env = altitude_env("volantex_ranger", decimation=5, turbulence="light")
+    roll(env, 40)
+    copy = pickle.loads(pickle.dumps(env))
+    assert copy.task._fused is None
+    td = env.reset()
+    assert_same_rollout(td, copy.reset())
+    assert_same_rollout(roll(env, 60), roll(copy, 60))
+
+
+def test_replaced_parameter_tensor_is_rebound():
+    runs = {}
+    for fused in (False, True):
+        env = altitude_env("navion", fused, decimation=5)
+        roll(env, 20)
+        params = env.sim.params
+        params.span = params.span * 3.0  # a new tensor: wing tips reach the ground at smaller rolls
+        params.surface_max = params.surface_max * 0.5
+        env.sim.engine.rebind()
+        runs[fused] = roll(env, 150)
+    assert_same_rollout(runs[False], runs[True])
+
+
+def test_unequal_motor_throttles_are_observed_as_their_mean():
+    out = {}
+    for fused in (False, True):
+        env = altitude_env("airship_v7", fused, decimation=1)
+        td = env.reset()
+        env.sim.x[:, S.THROTTLE_START] = torch.linspace(0.0, 0.4, N)
+        env.sim.x[:, S.THROTTLE_START + 1] = torch.linspace(1.0, 0.6, N)
+        td["action"] = env.trim_action().expand(N, -1).clone()
+        out[fused] = env.step(td)["next"]
+        throttle = out[fused]["state", "throttle"]
+        assert (throttle[:, 0] - throttle[:, 1]).abs().min() > 0.1
+    assert_same_rollout(out[False], out[True])
+
+
+def test_threaded_cpu_slices_match():
+    runs = {}
+    for fused in (False, True):
+        env = altitude_env("navion", fused, num_envs=16, warp_cpu_threads=2, turbulence="light")
+        assert len(env.sim.engine.slices) > 1
+        runs[fused] = roll(env, 100)
+    assert_same_rollout(runs[False], runs[True])
+
+
+@pytest.mark.gpu
+@pytest.mark.skipif(not warp_cuda_available(), reason="needs CUDA (torch and warp)")
+@pytest.mark.parametrize("options", [{"turbulence": "moderate"}, {"decimation": 1, "lean": True},
+                                     {"target_sequence": True, "capture_band": 1000.0, "hold_seconds": 0.3}])
+def test_fused_rollout_matches_on_cuda(options):
+    runs = {fused: roll(altitude_env("volantex_ranger", fused, num_envs=64, device="cuda", **options), 300)
+            for fused in (False, True)}
+    assert_same_rollout(runs[False], runs[True])
+    assert runs[True]["next", "observation"].device.type == "cuda"
