@@ -42,10 +42,19 @@ def test_check_env_specs(options: dict) -> None:
 
 
 def test_check_env_specs_warp() -> None:
-    env = make_env("altitude", "navion", num_envs=N, backend="warp", sensors="medium", obs_delay_ms=20.0,
-                   action_delay_ms=20.0, randomize=RandomizationConfig(turbulence_w20=(0.0, 10.0)),
+    env = make_env("altitude", "navion", num_envs=N, backend="warp", sensors="medium", obs_delay_ms=60.0,
+                   action_delay_ms=60.0, randomize=RandomizationConfig(turbulence_w20=(0.0, 10.0)),
                    turbulence="light")
     check_env_specs(env, seed=0)
+
+
+def test_a_delay_that_rounds_to_no_step_is_refused() -> None:
+    """20 ms at the default 20 Hz control (50 ms steps) would silently be no delay."""
+    env = make_env("altitude", "navion", num_envs=N, obs_delay_ms=20.0, seed=0)
+    with pytest.raises(ValueError, match="round to no delay"):
+        env.reset()
+    env = make_env("altitude", "navion", num_envs=N, obs_delay_ms=20.0, seed=0, decimation=1)
+    assert env.reset()["observation"].shape[0] == N  # 2 steps of 10 ms
 
 
 def test_nominal_presets_build_the_bare_env() -> None:

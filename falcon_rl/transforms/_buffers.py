@@ -185,9 +185,15 @@ def delay_steps(delay_ms: float, env_dt: float) -> int:
 
 
 def delay_range(spec: float | tuple[float, float], env_dt: float) -> tuple[int, int]:
-    """(low, high) steps of a fixed delay or of a (low, high) range in ms (see :func:`delay_bounds`)."""
+    """(low, high) steps of a fixed delay or of a (low, high) range in ms (see :func:`delay_bounds`);
+    ValueError when a delay that is not zero rounds to no step at this control period (a 20 ms delay
+    at 20 Hz control would silently be no delay)."""
     low, high = delay_bounds(spec)
-    return round(low / 1000.0 / env_dt), round(high / 1000.0 / env_dt)
+    steps = round(low / 1000.0 / env_dt), round(high / 1000.0 / env_dt)
+    if high > 0 and steps[1] == 0:
+        raise ValueError(f"a delay of {high:g} ms is under half the {1000 * env_dt:g} ms control step and "
+                         f"would round to no delay; use a longer delay or a faster control (decimation)")
+    return steps
 
 
 def draw_delays(low: int, high: int, num_envs: int, generator: torch.Generator,
