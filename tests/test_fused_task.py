@@ -221,3 +221,188 @@ def test_fused_rollout_matches_on_cuda(options):
             for fused in (False, True)}
     assert_same_rollout(runs[False], runs[True])
     assert runs[True]["next", "observation"].device.type == "cuda"
+
+
+# ---------------------------------------------------------------------------- the other tasks' fused steps
+#: Every buffer each task's ``step`` updates (dotted: an attribute of an attribute).
+OTHER_TASK_BUFFERS: dict[str, tuple[str, ...]] = {
+    "attitude": ("time", "step_index", "commanded", "errors", "previous_action", "random_stream.command",
+                 "random_stream.target", "random_stream.timer"),
+    "path_following": ("time", "path_point", "path_course", "errors", "previous_action"),
+    "trajectory": ("time", "start", "radius", "turn", "climb", "reference_position", "reference_velocity",
+                   "position_error", "velocity_error", "position_error_ned", "previous_action"),
+}
+#: Absolute tolerance (m) of the trajectory's positions: its reference R (1 - cos wt), with R up to a few
+#: km, turns a 1-ulp difference of cos (torch's SLEEF against the C library) into ~1e-4 m.
+POSITION_ATOL = {"reference_position": 1e-3, "position_error_ned": 1e-3, "position_error": 1e-3}
+
+
+def task_env(task: str, airframe: str = "navion", fused: bool = True, **options) -> EnvBase:
+    options = {"num_envs": N, "seed": 3, "wind": WIND, "episode_seconds": 4.0, **options}
+    return make_env(task, airframe, backend="warp", fused=fused, **options)
+
+
+def assert_close_entries(expected: TensorDictBase, actual: TensorDictBase, keys: list | None = None) -> None:
+    """:func:`assert_same_rollout` with the trajectory's position tolerance on its position entries."""
+    for key in keys if keys is not None else expected.keys(True, True):
+        a, b = expected[key], actual[key]
+        name = key[-1] if isinstance(key, tuple) else key
+        if a.is_floating_point():
+            tol = {**TOL, "atol": POSITION_ATOL.get(name, TOL["atol"])}
+            torch.testing.assert_close(b, a, **tol, msg=lambda m, key=key: f"{key}: {m}")
+        else:
+            assert torch.equal(a, b), key
+
+
+def task_buffer(task: object, name: str) -> torch.Tensor:
+    for part in name.split("."):
+        task = getattr(task, part)
+    assert isinstance(task, torch.Tensor)
+    return task
+
+
+@pytest.mark.parametrize(("task", "airframe", "decimation", "options"), [
+    ("attitude", "navion", 5, {}),
+    ("attitude", "volantex_ranger", 1, {"turbulence": "moderate"}),
+    ("attitude", "airship_v7", 5, {"turbulence": "moderate"}),
+    ("attitude", "volantex_ranger", 5, {"maneuver": "s_turn"}),
+    ("attitude", "navion", 1, {"maneuver": "figure8", "turbulence": "light"}),
+    ("path_following", "navion", 5, {"lost_distance": 25.0}),
+    ("path_following", "volantex_ranger", 1, {"turbulence": "moderate"}),
+    ("path_following", "airship_v7", 5, {"turbulence": "moderate", "lost_distance": 15.0}),
+    ("trajectory", "navion", 1, {"turbulence": "moderate", "lost_distance": 40.0}),
+    ("trajectory", "volantex_ranger", 5, {}),
+    ("trajectory", "airship_v7", 1, {"lost_distance": 30.0}),
+])
+def test_fused_task_rollout_matches_the_torch_step(task, airframe, decimation, options):
+    envs = {fused: task_env(task, airframe, fused, decimation=decimation, **options)
+            for fused in (False, True)}
+    runs = {fused: roll(env, 300 if decimation == 5 else 400) for fused, env in envs.items()}
+    reference = runs[False]
+    assert envs[True].task._fused is not None and envs[False].task._fused is None
+    assert set(reference.keys(True, True)) == set(runs[True].keys(True, True))
+    assert_close_entries(reference, runs[True])
+    for name in OTHER_TASK_BUFFERS[task]:
+        if name.startswith("random_stream") and envs[False].task.random_stream is None:
+            continue
+        expected, actual = task_buffer(envs[False].task, name), task_buffer(envs[True].task, name)
+        tol = {**TOL, "atol": POSITION_ATOL.get(name, TOL["atol"])}
+        torch.testing.assert_close(actual, expected, **tol, msg=lambda m, name=name: f"{name}: {m}")
+    assert torch.equal(envs[False].task.generator.get_state(), envs[True].task.generator.get_state())
+    reasons = reference["next", "termination_reason"]
+    assert (reasons > 0).any(), "the rollout should see terminations"
+    if "lost_distance" in options:
+        assert (reasons == TERMINATION_CODE["lost"]).any(), "the rollout should see lost envs"
+    if not {"maneuver", "lost_distance"} & set(options):  # a maneuver lasts its stream; lost envs end early
+        assert reference["next", "truncated"].any(), "the rollout should see truncations"
+
+
+class HeldAction:
+    """The same action [N, A] every step."""
+
+    def __init__(self, action: torch.Tensor):
+        self.action = action
+
+    def __call__(self, td: TensorDictBase) -> TensorDictBase:
+        return td.set("action", self.action.clone())
+
+
+def test_random_command_streams_redraw_as_the_torch_step():
+    """Trim-held flights of 25 s: every env's stream target expires (holds last 3-10 s) at least twice."""
+    runs, envs = {}, {}
+    for fused in (False, True):
+        env = envs[fused] = task_env("attitude", "volantex_ranger", fused, wind=None, episode_seconds=25.0,
+                                     decimation=5)
+        runs[fused] = env.rollout(500, HeldAction(env.trim_action().expand(N, -1).clone()),
+                                  break_when_any_done=False)
+    assert (runs[False]["next", "termination_reason"] == 0).all() and runs[False]["next", "truncated"].any()
+    assert_close_entries(runs[False], runs[True])
+    for name in OTHER_TASK_BUFFERS["attitude"]:
+        torch.testing.assert_close(task_buffer(envs[True].task, name), task_buffer(envs[False].task, name),
+                                   **TOL)
+
+
+@pytest.mark.parametrize("task", ["attitude", "path_following", "trajectory"])
+def test_lean_fused_task_env_streams_what_the_full_env_does(task):
+    options = {"decimation": 5, "turbulence": "light"}
+    full = roll(task_env(task, "airship_v7", fused=False, **options), 200)
+    lean = roll(task_env(task, "airship_v7", fused=True, lean=True, **options), 200)
+    keys = [*(("next", k) for k in ("observation", "reward", "done", "terminated", "truncated",
+                                      "termination_reason")), "observation", "done"]
+    assert_close_entries(full, lean, keys)
+    assert lean.get(("next", "state"), None) is None and (full["next", "termination_reason"] > 0).any()
+
+
+@pytest.mark.parametrize("task", ["attitude", "path_following", "trajectory"])
+def test_crafted_crashes_give_the_same_reasons_in_every_task(task):
+    lost = task != "attitude"
+    out = {}
+    for fused in (False, True):
+        env = task_env(task, "navion", fused, decimation=1, wind=None)
+        td = env.reset()
+        expected = crafted_states(env)
+        if lost:  # far off the path: row 5 is lost, row 6 touches the ground first
+            env.sim.x[5:7, S.POSITION.start + 1] = 5000.0
+            expected[5] = TERMINATION_CODE["lost"]
+        td["action"] = env.trim_action().expand(N, -1).clone()
+        out[fused] = env.step(td)["next"]
+        assert out[fused]["termination_reason"].flatten().tolist() == expected
+    assert_close_entries(out[False], out[True])
+
+
+def test_every_registered_task_has_a_fused_warp_step():
+    from falcon_rl.envs.tasks import TASK_SPECS
+
+    names = [name for name, spec in TASK_SPECS.items() if spec.task.__module__.startswith("falcon_rl.envs.")]
+    assert {"altitude", "climb_descend", "attitude", "path_following", "trajectory"} <= set(names)
+    for name in names:
+        env = make_env(name, "navion", num_envs=2, backend="warp", seed=0)
+        action = torch.zeros(2, env.task.action_dim)
+        assert env.task.fused_step(action) is not None, name
+        torch_env = make_env(name, "navion", num_envs=2, backend="torch", seed=0)
+        assert torch_env.task.fused_step(action) is None, name
+
+
+def test_other_tasks_fall_back_for_a_changed_step_or_stream():
+    from falcon_rl.envs.maneuvers import RandomCommandStream
+    from falcon_rl.envs.tasks import AttitudeTask, TrajectoryTask
+
+    class Changed(TrajectoryTask):
+        def advance_reference(self) -> None:
+            super().advance_reference()
+
+    class Stream(RandomCommandStream):
+        pass
+
+    env = task_env("trajectory")
+    env.task.__class__ = Changed
+    assert env.task.fused_step(torch.zeros(N, 4)) is None
+    env = task_env("attitude")
+    assert isinstance(env.task, AttitudeTask) and env.task.random_stream is not None
+    env.task.random_stream.__class__ = Stream
+    assert env.task.fused_step(torch.zeros(N, 4)) is None
+
+
+def test_pickled_fused_attitude_env_continues_the_same_stream():
+    env = task_env("attitude", "volantex_ranger", decimation=5, turbulence="light", warp_cpu_threads=2,
+                   num_envs=16)
+    assert len(env.sim.engine.slices) > 1
+    roll(env, 40)
+    copy = pickle.loads(pickle.dumps(env))
+    assert copy.task._fused is None
+    assert_close_entries(env.reset(), copy.reset())
+    assert_close_entries(roll(env, 60), roll(copy, 60))
+
+
+@pytest.mark.gpu
+@pytest.mark.skipif(not warp_cuda_available(), reason="needs CUDA (torch and warp)")
+@pytest.mark.parametrize(("task", "options"), [
+    ("attitude", {"turbulence": "moderate"}), ("attitude", {"maneuver": "helix", "lean": True}),
+    ("path_following", {"turbulence": "moderate", "lost_distance": 25.0}),
+    ("trajectory", {"decimation": 1, "lost_distance": 40.0}),
+])
+def test_fused_task_rollout_matches_on_cuda(task, options):
+    runs = {fused: roll(task_env(task, "volantex_ranger", fused, num_envs=64, device="cuda", **options), 300)
+            for fused in (False, True)}
+    assert_close_entries(runs[False], runs[True])
+    assert runs[True]["next", "observation"].device.type == "cuda"

@@ -1,18 +1,17 @@
 """The altitude task's step in one Warp kernel (``AltitudeTask.fused_step`` on the warp backend).
 
 :func:`altitude_step_kernel` does for env i what ``AltitudeTask.step(sim.state, action)`` does: it
-computes the few derived quantities the task reads (height, lowest wing-tip height, airspeed, alpha,
-clamped elevator, pitch, down velocity) from the state row, wind and gusts with the same ``@wp.func``
-twins as the engine's evaluation kernel (no aerodynamics, no propulsion), then advances the clock and
-the reference ramp, releases the next target (``target_sequence``), updates the filters, and writes
-the reward, the termination reason and the clipped observation. The task's buffers are zero-copy
-Warp views of its torch tensors, so ``info()``, ``after_reset`` and the torch ``step`` see the same
-memory. Clamps keep torch's semantics (a NaN stays NaN), so a broken row reads the same both ways.
+computes the derived state the task reads with ``warp_common.flight_state`` (the twins of the engine's
+evaluation kernel), then advances the clock and the reference ramp, releases the next target
+(``target_sequence``), updates the filters, and writes the reward, the termination reason and the
+clipped observation. The task's buffers are zero-copy Warp views of its torch tensors, so ``info()``,
+``after_reset`` and the torch ``step`` see the same memory. Clamps keep torch's semantics (a NaN stays
+NaN), so a broken row reads the same both ways.
 
-:class:`FusedAltitudeStep` binds the views once, records the launch (one per CPU slice of the
-engine) and replays it each step; per step it runs two torch ops (the action copy and, with a target
-sequence, the random shift drawn from the task's generator exactly as the torch step draws it) and
-the launch: no allocation, no host synchronisation.
+:class:`FusedAltitudeStep` (a ``warp_common.FusedStep``) binds the views once, records the launch (one
+per CPU slice of the engine) and replays it each step; per step it runs two torch ops (the action copy
+and, with a target sequence, the random shift drawn from the task's generator exactly as the torch
+step draws it) and the launch: no allocation, no host synchronisation.
 """
 
 from __future__ import annotations
@@ -24,41 +23,25 @@ import torch
 import warp as wp
 
 from ...constants import DEG
-from ...physics.dynamics import air_data_wp
-from ...physics.rotations import quaternion_to_euler_wp, rotation_matrix_wp
-from ...physics.state import (
-    ANGULAR_RATE_START,
-    DOWN_INDEX,
-    PITCH,
-    QUATERNION_START,
-    SURFACE_POSITION_START,
-    THROTTLE_START,
-    VELOCITY_START,
-)
-from ...physics.warp_backend import warp_device
 from ...physics.warp_kernels import flush_denormals_begin, flush_denormals_end
-from .base import TERMINATION_CODE
+from .warp_common import (
+    FusedStep,
+    SimulatorViews,
+    clamp_keep_nan,
+    clamp_max_keep_nan,
+    clamp_min_keep_nan,
+    clip,
+    fill_struct,
+    flight_state,
+    gaussian_wp,
+    normalised_surface,
+    taper_wp,
+    termination_code,
+    torch_sign,
+)
 
 if TYPE_CHECKING:
     from .altitude import AltitudeTask
-
-GROUND_CONTACT = wp.constant(TERMINATION_CODE["ground_contact"])
-ALPHA_STALL = wp.constant(TERMINATION_CODE["alpha_stall"])
-SPEED_STALL = wp.constant(TERMINATION_CODE["speed_stall"])
-PITCH_RATE = wp.constant(ANGULAR_RATE_START + PITCH)
-
-
-@wp.struct
-class SimulatorViews:
-    """The simulator's buffers the task reads: state [N, S], air motion [N] vec3, geometry [N]."""
-
-    x: wp.array2d(dtype=wp.float32)
-    wind_ned: wp.array(dtype=wp.vec3)
-    gust_velocity_body: wp.array(dtype=wp.vec3)
-    span: wp.array(dtype=wp.float32)
-    wing_quarter_chord: wp.array(dtype=wp.vec3)
-    surface_min: wp.array(dtype=wp.vec3)
-    surface_max: wp.array(dtype=wp.vec3)
 
 
 @wp.struct
@@ -117,48 +100,6 @@ class AltitudeConstants:
 
 
 @wp.func
-def clamp_keep_nan(v: float, lo: float, hi: float) -> float:
-    """``torch.clamp``: v in [lo, hi], a NaN stays NaN."""
-    if v < lo:
-        return lo
-    if v > hi:
-        return hi
-    return v
-
-
-@wp.func
-def clamp_min_keep_nan(v: float, lo: float) -> float:
-    """``torch.clamp_min``: max(v, lo), a NaN stays NaN."""
-    if v < lo:
-        return lo
-    return v
-
-
-@wp.func
-def clamp_max_keep_nan(v: float, hi: float) -> float:
-    """``torch.clamp(max=)``: min(v, hi), a NaN stays NaN."""
-    if v > hi:
-        return hi
-    return v
-
-
-@wp.func
-def torch_sign(v: float) -> float:
-    """``torch.sign``: -1, 0 or 1 (``wp.sign`` gives 1 at 0)."""
-    if v > 0.0:
-        return 1.0
-    if v < 0.0:
-        return -1.0
-    return 0.0
-
-
-@wp.func
-def taper_wp(error: float, band: float) -> float:
-    """max(0, 1 - |e| / band) (twin of ``base.taper``)."""
-    return clamp_min_keep_nan(1.0 - wp.abs(error) / band, 0.0)
-
-
-@wp.func
 def reference_wp(target: float, start: float, rate: float, elapsed: float) -> wp.vec2:
     """(h_ref, hdot_ref) of the ramp from ``start`` to ``target`` at ``rate`` after ``elapsed`` s
     (twin of ``AltitudeTask._update_reference``)."""
@@ -193,29 +134,11 @@ def altitude_step_kernel(sim: SimulatorViews, buf: AltitudeBuffers, c: AltitudeC
     and writes observation [N, 11], reward [N] and the termination reason [N] (0: flying)."""
     i = wp.tid() + offset
     saved = flush_denormals_begin()
-    x = sim.x
-    # The derived state the task reads (the expressions of evaluate_wp and evaluate_kernel).
-    q = wp.vec4(x[i, QUATERNION_START], x[i, QUATERNION_START + 1], x[i, QUATERNION_START + 2],
-                x[i, QUATERNION_START + 3])
-    rot = rotation_matrix_wp(q)
-    vel = wp.vec3(x[i, VELOCITY_START], x[i, VELOCITY_START + 1], x[i, VELOCITY_START + 2])
-    air = air_data_wp(vel - wp.transpose(rot) * sim.wind_ned[i] - sim.gust_velocity_body[i])
-    airspeed = air[0]
-    alpha = air[1]
-    height = -x[i, DOWN_INDEX]
-    wing_height = height - wp.dot(wp.vec3(rot[2, 0], rot[2, 1], rot[2, 2]), sim.wing_quarter_chord[i])
-    lowest_tip = wing_height - 0.5 * sim.span[i] * wp.abs(rot[2, 1])
-    lo = sim.surface_min[i][0]
-    hi = sim.surface_max[i][0]
-    elevator = wp.min(wp.max(x[i, SURFACE_POSITION_START], lo), hi)
-    pitch = quaternion_to_euler_wp(q)[1]
-    velocity_down = (rot * vel)[2]
-    motors = x.shape[1] - THROTTLE_START
-    throttle = wp.float32(0.0)
-    for k in range(motors):
-        throttle += x[i, THROTTLE_START + k]
-    throttle = throttle / float(motors)
-    pitch_rate = x[i, PITCH_RATE]
+    f = flight_state(sim, i)
+    height = f.height
+    airspeed = f.airspeed
+    elevator = f.surfaces[0]
+    pitch_rate = f.angular_rate[1]
     # advance: clock, segment time, reference ramp
     dt = c.env_dt
     buf.time[i] = buf.time[i] + dt
@@ -255,38 +178,29 @@ def altitude_step_kernel(sim: SimulatorViews, buf: AltitudeBuffers, c: AltitudeC
     e_v = airspeed - c.trim_airspeed
     action = buf.action[i]
     action_rate = wp.length(action - buf.previous_action[i])
-    ratio = e_h / c.sigma_altitude
     past_target = clamp_min_keep_nan(torch_sign(target - initial) * (height - target), 0.0)
-    reward[i] = (c.w_altitude * wp.exp(-0.5 * (ratio * ratio))
+    reward[i] = (c.w_altitude * gaussian_wp(e_h, c.sigma_altitude)
                  - c.w_airspeed * wp.abs(e_v) / c.trim_airspeed
                  - c.w_pitch_rate * clamp_max_keep_nan(pitch_rate * pitch_rate, c.pitch_rate_cap)
                  - c.w_smooth * action_rate * taper_wp(e_h, c.gate_band)
                  + c.w_altitude * taper_wp(e_h, c.capture_band) * taper_wp(e_v, c.airspeed_band)
                  + c.survival_bonus
                  - c.w_overshoot * past_target)
-    # termination reason: the first of ground contact (CG or lower wing tip), alpha stall, speed stall
-    code = wp.int64(0)
-    if height <= 0.0 or lowest_tip <= 0.0:
-        code = wp.int64(GROUND_CONTACT)
-    elif wp.abs(alpha) > c.stall_alpha:
-        code = wp.int64(ALPHA_STALL)
-    elif airspeed < c.stall_speed:
-        code = wp.int64(SPEED_STALL)
-    reason[i] = code
+    reason[i] = termination_code(f, c.stall_alpha, c.stall_speed, False)
     buf.previous_action[i] = action
     # observation, clipped
-    clip = c.observation_clip
-    observation[i, 0] = clamp_keep_nan(e_h / 25.0, -clip, clip)
-    observation[i, 1] = clamp_keep_nan(pitch_rate / 2.0, -clip, clip)
-    observation[i, 2] = clamp_keep_nan(e_v / c.airspeed_sigma, -clip, clip)
-    observation[i, 3] = clamp_keep_nan(pitch / c.pitch_scale, -clip, clip)
-    observation[i, 4] = clamp_keep_nan(velocity_down / c.climb_rate_limit, -clip, clip)
-    observation[i, 5] = clamp_keep_nan(alpha / c.alpha_scale, -clip, clip)
-    observation[i, 6] = clamp_keep_nan(2.0 * (elevator - lo) / (hi - lo) - 1.0, -clip, clip)
-    observation[i, 7] = clamp_keep_nan(elevator_rate / c.elevator_rate_scale, -clip, clip)
-    observation[i, 8] = clamp_keep_nan(2.0 * throttle - 1.0, -clip, clip)
-    observation[i, 9] = clamp_keep_nan(integral / 10.0, -clip, clip)
-    observation[i, 10] = clamp_keep_nan(ref[1] / 5.0, -clip, clip)
+    lim = c.observation_clip
+    observation[i, 0] = clip(e_h / 25.0, lim)
+    observation[i, 1] = clip(pitch_rate / 2.0, lim)
+    observation[i, 2] = clip(e_v / c.airspeed_sigma, lim)
+    observation[i, 3] = clip(f.euler[1] / c.pitch_scale, lim)
+    observation[i, 4] = clip(f.velocity_ned[2] / c.climb_rate_limit, lim)
+    observation[i, 5] = clip(f.alpha / c.alpha_scale, lim)
+    observation[i, 6] = clip(normalised_surface(f, 0), lim)
+    observation[i, 7] = clip(elevator_rate / c.elevator_rate_scale, lim)
+    observation[i, 8] = clip(2.0 * f.throttle - 1.0, lim)
+    observation[i, 9] = clip(integral / 10.0, lim)
+    observation[i, 10] = clip(ref[1] / 5.0, lim)
     flush_denormals_end(saved)
 
 
@@ -294,8 +208,7 @@ def altitude_constants(task: AltitudeTask) -> Any:
     """:class:`AltitudeConstants` of ``task``'s config and airframe (scalars as the torch step forms
     them: Python products first, then float32)."""
     cfg = task.config
-    c = AltitudeConstants()
-    values = {
+    return fill_struct(AltitudeConstants(), {
         "env_dt": task.env_dt, "hold_seconds": cfg.hold_seconds, "capture_band": cfg.capture_band,
         "integral_limit": cfg.integral_limit, "trim_airspeed": task.trim_airspeed,
         "airspeed_sigma": cfg.airspeed_scale * task.trim_airspeed,
@@ -306,78 +219,37 @@ def altitude_constants(task: AltitudeTask) -> Any:
         "gate_band": cfg.gate_band, "airspeed_band": cfg.airspeed_band_fraction * task.trim_airspeed,
         "survival_bonus": cfg.survival_bonus, "w_overshoot": cfg.w_overshoot,
         "stall_alpha": task.stall_alpha, "stall_speed": task.stall_speed,
-        "observation_clip": task.observation_clip,
-    }
-    for name, value in values.items():
-        setattr(c, name, float(value))
-    c.target_sequence = int(bool(cfg.target_sequence))
-    return c
+        "observation_clip": task.observation_clip, "target_sequence": int(bool(cfg.target_sequence)),
+    })
 
 
-class FusedAltitudeStep:
-    """The recorded launch of :func:`altitude_step_kernel` for one task, with its output buffers:
-    observation [N, 11], reward [N] and reason [N] long, overwritten by each call. It binds again when
-    a simulator tensor it reads has moved (e.g. ``sim.params`` replaced); the task's own buffers and
-    config are bound once (they are written in place)."""
+class FusedAltitudeStep(FusedStep):
+    """The recorded launch of :func:`altitude_step_kernel` for one altitude task: observation [N, 11],
+    reward [N], reason [N] long, and the random target shift [N] long drawn before each launch."""
+
+    kernel = altitude_step_kernel
+    task: AltitudeTask
 
     def __init__(self, task: AltitudeTask):
-        self.task = task
-        n, device = task.num_envs, task.device
-        self.observation = torch.zeros(n, task.observation_dim, device=device, dtype=torch.float32)
-        self.reward = torch.zeros(n, device=device, dtype=torch.float32)
-        self.reason = torch.zeros(n, device=device, dtype=torch.long)
-        #: The action of the step [N, A] (copied in) and the random target shift [N] long.
-        self.action = torch.zeros(n, task.action_dim, device=device, dtype=torch.float32)
-        self.shift = torch.zeros(n, device=device, dtype=torch.long)
+        super().__init__(task)
+        self.shift = torch.zeros(task.num_envs, device=task.device, dtype=torch.long)
         self.shift_high = max(len(task.target_table), 2)
-        self.device = warp_device(device)
-        self._launches: list[Any] = []
-        self._key: tuple[int, ...] = ()
         self.bind()
 
-    def _simulator_tensors(self) -> tuple[torch.Tensor, ...]:
-        sim = self.task.sim
-        p = sim.params
-        return (sim.x, sim.wind_ned, sim.gust_velocity_body, p.span, p.wing_quarter_chord, p.surface_min,
-                p.surface_max)
-
-    def _binding_key(self) -> tuple[int, ...]:
-        return tuple(t.data_ptr() for t in self._simulator_tensors())
-
-    def bind(self) -> None:
-        """Bind zero-copy views of the simulator's and the task's tensors and record the launches."""
+    def task_inputs(self) -> list[Any]:
         task = self.task
-        views = SimulatorViews()
-        for name, tensor in zip(("x", "wind_ned", "gust_velocity_body", "span", "wing_quarter_chord",
-                                 "surface_min", "surface_max"), self._simulator_tensors(), strict=True):
-            dtype = wp.vec3 if tensor.dim() == 2 and name != "x" else None
-            setattr(views, name, wp.from_torch(tensor, dtype=dtype))
-        buf = AltitudeBuffers()
-        for name in ("time", "climb_rate", "target", "initial_altitude", "segment_start", "segment_time",
-                     "time_in_band", "error_integral", "previous_elevator", "elevator_rate", "reference",
-                     "reference_rate", "altitude_error", "reference_error", "target_table"):
-            setattr(buf, name, wp.from_torch(getattr(task, name)))
-        buf.previous_action = wp.from_torch(task.previous_action, dtype=wp.vec2)
-        buf.action = wp.from_torch(self.action, dtype=wp.vec2)
-        buf.shift = wp.from_torch(self.shift, dtype=wp.int64)
-        outputs = [wp.from_torch(self.observation), wp.from_torch(self.reward),
-                   wp.from_torch(self.reason, dtype=wp.int64)]
-        inputs = [views, buf, altitude_constants(task), *outputs]
-        self._launches = [wp.launch(altitude_step_kernel, dim=count, inputs=[*inputs, offset],
-                                    device=self.device, record_cmd=True)
-                          for offset, count in task.sim.engine.slices]
-        self._key = self._binding_key()
+        buf = fill_struct(AltitudeBuffers(), {
+            name: getattr(task, name)
+            for name in ("time", "climb_rate", "target", "initial_altitude", "segment_start", "segment_time",
+                         "time_in_band", "error_integral", "previous_elevator", "elevator_rate", "reference",
+                         "reference_rate", "altitude_error", "reference_error", "target_table",
+                         "previous_action")})
+        fill_struct(buf, {"action": self.action, "shift": self.shift})
+        return [buf, altitude_constants(task)]
 
-    def __call__(self, action: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """(observation [N, D], reward [N], reason [N] long) of the step that applied ``action`` [N, A]."""
-        if self._binding_key() != self._key:
-            self.bind()
-        self.action.copy_(action)
+    def draw(self) -> None:
+        """With a target sequence: the random target shift [N], drawn as ``_release_next_targets`` does."""
         task = self.task
         if task.config.target_sequence:
             torch.randint(1, self.shift_high, (task.num_envs,), generator=task.generator, device=task.device,
                           out=self.shift)
-        # The engine replays them as its own: on torch's current CUDA stream, or the CPU slices on its
-        # threads.
-        task.sim.engine.run(self._launches)
-        return self.observation, self.reward, self.reason

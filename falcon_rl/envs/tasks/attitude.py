@@ -24,12 +24,16 @@ sigma_phi = 8.6 deg (the paper's bank tolerance band), sigma_hdot = 0.25 climb-r
 sigma_Va = 0.05 cruise, V_safe = 1.3 V_stall.
 Termination: ground contact, |alpha| > 1.5 alpha_stall or V_a < V_stall; truncation at the horizon.
 Published under ("task", ...): bank/climb_rate/airspeed commands and their errors.
+
+On the warp backend the env's step runs :meth:`AttitudeTask.fused_step`: all of the above after the
+physics in one Warp kernel (``attitude_warp``), the random stream's draws included.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import torch
 from tensordict import TensorDictBase
@@ -40,6 +44,9 @@ from ...physics import state as S
 from ..maneuvers import RandomCommandStream, maneuver_stream
 from .base import Task, TaskConfig, airspeed_margin_penalty, gaussian
 from .registry import TRIM_HOLD, Metric, TaskSpec, register_task
+
+if TYPE_CHECKING:
+    from .attitude_warp import FusedAttitudeStep
 
 
 @dataclass
@@ -89,6 +96,7 @@ class AttitudeTask(Task):
         self.errors = torch.zeros(n, 3, **kw)  # (e_phi, e_hdot, e_Va)
         self.error_scale = torch.tensor(
             [30.0 * DEG, self.climb_scale, config.airspeed_scale * env.cruise_speed], **kw)
+        self._fused: FusedAttitudeStep | None = None  # bound on the first fused step
 
     @property
     def episode_seconds(self) -> float:
@@ -161,6 +169,23 @@ class AttitudeTask(Task):
         return (tracking - cfg.w_energy * airspeed_margin_penalty(state["airspeed"], self.safe_airspeed)
                 - cfg.w_smooth * action_rate)
 
+    # ------------------------------------------------------------------ fused step
+    def fused_step(self, action: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor] | None:
+        """:meth:`step` as one Warp kernel on the warp backend (``attitude_warp``; None elsewhere, or
+        when a subclass overrides a method of the step or the stream is not a ``RandomCommandStream``):
+        (observation [N, 15], reward [N], reason [N] long), buffers overwritten by the next call."""
+        stream = self.random_stream
+        if self.sim.backend != "warp" or (stream is not None and type(stream) is not RandomCommandStream):
+            return None
+        from .attitude_warp import FusedAttitudeStep
+        from .warp_common import run_fused
+
+        return run_fused(self, AttitudeTask, _FUSED_METHODS, FusedAttitudeStep, action)
+
+    def __getstate__(self) -> dict:
+        """The plain state: the fused step's Warp binding is made again after unpickling."""
+        return {**self.__dict__, "_fused": None}
+
     def info(self) -> dict[str, torch.Tensor]:
         return {
             "bank_command": self.commanded[:, 0].clone(),
@@ -171,6 +196,10 @@ class AttitudeTask(Task):
             "airspeed_error": self.errors[:, 2].clone(),
         }
 
+
+#: The methods :meth:`AttitudeTask.fused_step` fuses: a subclass that overrides one falls back to ``step``.
+_FUSED_METHODS: tuple[str, ...] = ("step", "advance", "update", "reward", "observe", "termination_checks",
+                                   "termination_reason", "_current_command", "_update_errors")
 
 #: Training defaults (on top of each recipe's own): the env's defaults (20 Hz control), the task's own reward;
 #: PPO's training return plateaus after ~3 M of the 8 M frames. The protocol flies ``episodes`` per

@@ -20,12 +20,16 @@ Action [delta_e, delta_a, delta_r, delta_t]. Reward:
 Termination: ground contact, stall, or |e_y| > ``lost_distance``. Published: cross_track_error,
 course_error, altitude_error and the path: path_point [2] (north, east, m), path_course (rad),
 path_height (m).
+
+On the warp backend the env's step runs :meth:`PathFollowingTask.fused_step`: all of the above after
+the physics in one Warp kernel (``path_following_warp``).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import torch
 from tensordict import TensorDictBase
@@ -35,6 +39,9 @@ from ...physics import Simulator
 from ...physics import state as S
 from .base import Task, TaskConfig, airspeed_margin_penalty, gaussian, wrap_angle
 from .registry import TRIM_HOLD, Metric, TaskSpec, register_task
+
+if TYPE_CHECKING:
+    from .path_following_warp import FusedPathFollowingStep
 
 
 @dataclass
@@ -76,6 +83,7 @@ class PathFollowingTask(Task):
         self.path_course = torch.zeros(n, **kw)
         self.errors = torch.zeros(n, 3, **kw)  # (e_y, chi_err, e_h)
         self.safe_airspeed = config.safe_airspeed_factor * self.airframe.envelope.stall_speed
+        self._fused: FusedPathFollowingStep | None = None  # bound on the first fused step
 
     def sample_initial(self, mask: torch.Tensor) -> dict[str, torch.Tensor]:
         cfg = self.config
@@ -131,12 +139,32 @@ class PathFollowingTask(Task):
         lost = self.errors[:, 0].abs() > self.config.lost_distance
         return {**super().termination_checks(state), "lost": lost}
 
+    def fused_step(self, action: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor] | None:
+        """:meth:`step` as one Warp kernel on the warp backend (``path_following_warp``; None elsewhere,
+        or when a subclass overrides a method of the step): (observation [N, 17], reward [N], reason [N]
+        long), buffers overwritten by the next call."""
+        if self.sim.backend != "warp":
+            return None
+        from .path_following_warp import FusedPathFollowingStep
+        from .warp_common import run_fused
+
+        return run_fused(self, PathFollowingTask, _FUSED_METHODS, FusedPathFollowingStep, action)
+
+    def __getstate__(self) -> dict:
+        """The plain state: the fused step's Warp binding is made again after unpickling."""
+        return {**self.__dict__, "_fused": None}
+
     def info(self) -> dict[str, torch.Tensor]:
         return {"cross_track_error": self.errors[:, 0].clone(), "course_error": self.errors[:, 1].clone(),
                 "altitude_error": self.errors[:, 2].clone(), "path_point": self.path_point.clone(),
                 "path_course": self.path_course.clone(),
                 "path_height": torch.full_like(self.path_course, self.config.initial_height)}
 
+
+#: The methods :meth:`PathFollowingTask.fused_step` fuses: a subclass that overrides one falls back to
+#: ``step``.
+_FUSED_METHODS: tuple[str, ...] = ("step", "advance", "update", "reward", "observe", "termination_checks",
+                                   "termination_reason")
 
 SPEC = register_task(TaskSpec(
     name="path_following", task=PathFollowingTask, config=PathFollowingConfig,

@@ -22,12 +22,16 @@ sigma_V = ``airspeed_scale`` x cruise. Action [delta_e, delta_a, delta_r, delta_
 
 Termination: ground contact, stall, or |e_p| > ``lost_distance``. Published: position_error
 (|e_p|), position_error_ned [3], reference_position [3], reference_velocity [3].
+
+On the warp backend the env's step runs :meth:`TrajectoryTask.fused_step`: all of the above after the
+physics in one Warp kernel (``trajectory_warp``).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import torch
 from tensordict import TensorDictBase
@@ -37,6 +41,9 @@ from ...physics import Simulator
 from ...physics import state as S
 from .base import Task, TaskConfig, airspeed_margin_penalty, gaussian
 from .registry import TRIM_HOLD, Metric, TaskSpec, register_task
+
+if TYPE_CHECKING:
+    from .trajectory_warp import FusedTrajectoryStep
 
 
 @dataclass
@@ -87,6 +94,7 @@ class TrajectoryTask(Task):
         self.velocity_error = torch.zeros(n, 3, **kw)  # heading frame
         self.position_error_ned = torch.zeros(n, 3, **kw)
         self.safe_airspeed = config.safe_airspeed_factor * self.airframe.envelope.stall_speed
+        self._fused: FusedTrajectoryStep | None = None  # bound on the first fused step
 
     def sample_initial(self, mask: torch.Tensor) -> dict[str, torch.Tensor]:
         cfg = self.config
@@ -158,12 +166,31 @@ class TrajectoryTask(Task):
         distance = torch.linalg.vector_norm(self.position_error, dim=-1)
         return {**super().termination_checks(state), "lost": distance > self.config.lost_distance}
 
+    def fused_step(self, action: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor] | None:
+        """:meth:`step` as one Warp kernel on the warp backend (``trajectory_warp``; None elsewhere, or
+        when a subclass overrides a method of the step): (observation [N, 17], reward [N], reason [N]
+        long), buffers overwritten by the next call."""
+        if self.sim.backend != "warp":
+            return None
+        from .trajectory_warp import FusedTrajectoryStep
+        from .warp_common import run_fused
+
+        return run_fused(self, TrajectoryTask, _FUSED_METHODS, FusedTrajectoryStep, action)
+
+    def __getstate__(self) -> dict:
+        """The plain state: the fused step's Warp binding is made again after unpickling."""
+        return {**self.__dict__, "_fused": None}
+
     def info(self) -> dict[str, torch.Tensor]:
         return {"position_error": torch.linalg.vector_norm(self.position_error, dim=-1),
                 "position_error_ned": self.position_error_ned.clone(),
                 "reference_position": self.reference_position.clone(),
                 "reference_velocity": self.reference_velocity.clone()}
 
+
+#: The methods :meth:`TrajectoryTask.fused_step` fuses: a subclass that overrides one falls back to ``step``.
+_FUSED_METHODS: tuple[str, ...] = ("step", "advance", "advance_reference", "update", "reward", "observe",
+                                   "termination_checks", "termination_reason")
 
 SPEC = register_task(TaskSpec(
     name="trajectory", task=TrajectoryTask, config=TrajectoryConfig, gym_id="falcon_rl/Trajectory-v0",

@@ -1,0 +1,223 @@
+"""The attitude task's step in one Warp kernel (``AttitudeTask.fused_step`` on the warp backend).
+
+:func:`attitude_step_kernel` does for env i what ``AttitudeTask.step(sim.state, action)`` does: it
+advances the clock and the command stream (a row of the maneuver table, or one step of the
+``RandomCommandStream``: timer, target redraw on expiry, slew-limited command), computes the bank,
+climb-rate and airspeed errors from ``warp_common.flight_state``, and writes the reward, the
+termination reason and the clipped observation. The random stream's uniforms (N x 4 per step, drawn
+whether or not a target expires) are drawn in torch from the task's generator before the launch, as
+``RandomCommandStream.step`` draws them.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Any
+
+import torch
+import warp as wp
+
+from ...constants import DEG
+from ...physics.warp_kernels import flush_denormals_begin, flush_denormals_end
+from .warp_common import (
+    FusedStep,
+    SimulatorViews,
+    airspeed_margin_penalty_wp,
+    clamp_keep_nan,
+    clip,
+    fill_struct,
+    flight_state,
+    gaussian_wp,
+    termination_code,
+)
+
+if TYPE_CHECKING:
+    from .attitude import AttitudeTask
+
+
+@wp.struct
+class AttitudeBuffers:
+    """The task's per-env buffers (views of AttitudeTask's tensors and of its random stream's), the
+    actions [N] vec4, the step's uniforms [N] vec4 and the maneuver table [T] vec3."""
+
+    time: wp.array(dtype=wp.float32)
+    step_index: wp.array(dtype=wp.int64)
+    commanded: wp.array(dtype=wp.vec3)
+    errors: wp.array(dtype=wp.vec3)
+    previous_action: wp.array(dtype=wp.vec4)
+    action: wp.array(dtype=wp.vec4)
+    stream_command: wp.array(dtype=wp.vec3)
+    stream_target: wp.array(dtype=wp.vec3)
+    stream_timer: wp.array(dtype=wp.float32)
+    draws: wp.array(dtype=wp.vec4)
+    table: wp.array(dtype=wp.vec3)
+
+
+@wp.struct
+class AttitudeConstants:
+    """Config, stream and airframe constants, each the float32 the torch step's scalar or tensor holds."""
+
+    env_dt: float
+    random: int  # 1: RandomCommandStream, 0: maneuver table
+    table_last: wp.int64
+    stream_dt: float
+    target_low: wp.vec3
+    target_span: wp.vec3  # high - low
+    slew_min: wp.vec3  # -rate x dt
+    slew_max: wp.vec3  # rate x dt
+    hold_low: float
+    hold_span: float
+    error_scale: wp.vec3
+    angle_scale: float  # pi / 4
+    air_angle_scale: float  # 20 deg
+    climb_scale: float
+    w_bank: float
+    sigma_bank: float
+    w_climb: float
+    sigma_climb: float
+    w_airspeed: float
+    sigma_airspeed: float
+    w_energy: float
+    safe_airspeed: float
+    w_smooth: float
+    stall_alpha: float
+    stall_speed: float
+    observation_clip: float
+
+
+@wp.func
+def clamp_vec3_keep_nan(v: wp.vec3, lo: wp.vec3, hi: wp.vec3) -> wp.vec3:
+    """``torch.clamp`` with tensor bounds, per component."""
+    return wp.vec3(clamp_keep_nan(v[0], lo[0], hi[0]), clamp_keep_nan(v[1], lo[1], hi[1]),
+                   clamp_keep_nan(v[2], lo[2], hi[2]))
+
+
+@wp.func
+def random_stream_step(buf: AttitudeBuffers, c: AttitudeConstants, i: int) -> wp.vec3:
+    """One ``RandomCommandStream.step`` of env i; returns the new command (phi*, hdot*, V_a*)."""
+    timer = buf.stream_timer[i] - c.stream_dt
+    target = buf.stream_target[i]
+    if timer <= 0.0:
+        u = buf.draws[i]
+        target = c.target_low + wp.cw_mul(c.target_span, wp.vec3(u[0], u[1], u[2]))
+        timer = c.hold_low + c.hold_span * u[3]
+    buf.stream_timer[i] = timer
+    buf.stream_target[i] = target
+    command = buf.stream_command[i]
+    command = command + clamp_vec3_keep_nan(target - command, c.slew_min, c.slew_max)
+    buf.stream_command[i] = command
+    return command
+
+
+@wp.kernel
+def attitude_step_kernel(sim: SimulatorViews, buf: AttitudeBuffers, c: AttitudeConstants,
+                         observation: wp.array2d(dtype=wp.float32), reward: wp.array(dtype=wp.float32),
+                         reason: wp.array(dtype=wp.int64), offset: int):
+    """One attitude-task step of env i = offset + tid after the physics: updates the buffers in place
+    and writes observation [N, 15], reward [N] and the termination reason [N] (0: flying)."""
+    i = wp.tid() + offset
+    saved = flush_denormals_begin()
+    f = flight_state(sim, i)
+    # advance: clock, command stream
+    buf.time[i] = buf.time[i] + c.env_dt
+    index = buf.step_index[i] + wp.int64(1)
+    buf.step_index[i] = index
+    commanded = wp.vec3(0.0)
+    if c.random != 0:
+        commanded = random_stream_step(buf, c, i)
+    else:
+        commanded = buf.table[int(wp.min(index, c.table_last))]
+    buf.commanded[i] = commanded
+    # update: tracking errors (e_phi, e_hdot, e_Va)
+    errors = wp.vec3(f.euler[0], -f.velocity_ned[2], f.airspeed) - commanded
+    buf.errors[i] = errors
+    # reward
+    action = buf.action[i]
+    action_rate = wp.length_sq(action - buf.previous_action[i])
+    reward[i] = (c.w_bank * gaussian_wp(errors[0], c.sigma_bank)
+                 + c.w_climb * gaussian_wp(errors[1], c.sigma_climb)
+                 + c.w_airspeed * gaussian_wp(errors[2], c.sigma_airspeed)
+                 - c.w_energy * airspeed_margin_penalty_wp(f.airspeed, c.safe_airspeed)
+                 - c.w_smooth * action_rate)
+    reason[i] = termination_code(f, c.stall_alpha, c.stall_speed, False)
+    buf.previous_action[i] = action
+    # observation, clipped
+    lim = c.observation_clip
+    for k in range(3):
+        observation[i, k] = clip(errors[k] / c.error_scale[k], lim)
+        observation[i, 5 + k] = clip(f.angular_rate[k] / 2.0, lim)
+    observation[i, 3] = clip(f.euler[0] / c.angle_scale, lim)
+    observation[i, 4] = clip(f.euler[1] / c.angle_scale, lim)
+    observation[i, 8] = clip(f.alpha / c.air_angle_scale, lim)
+    observation[i, 9] = clip(f.beta / c.air_angle_scale, lim)
+    observation[i, 10] = clip(f.velocity_ned[2] / c.climb_scale, lim)
+    for k in range(4):
+        observation[i, 11 + k] = clip(action[k], lim)
+    flush_denormals_end(saved)
+
+
+def attitude_constants(task: AttitudeTask) -> Any:
+    """:class:`AttitudeConstants` of ``task``'s config, stream and airframe."""
+    cfg = task.config
+    env = task.airframe.envelope
+    values: dict[str, Any] = {
+        "env_dt": task.env_dt, "random": 0, "table_last": 0, "stream_dt": 0.0, "target_low": (0.0,) * 3,
+        "target_span": (0.0,) * 3, "slew_min": (0.0,) * 3, "slew_max": (0.0,) * 3, "hold_low": 0.0,
+        "hold_span": 0.0, "error_scale": tuple(task.error_scale.tolist()), "angle_scale": math.pi / 4,
+        "air_angle_scale": 20.0 * DEG, "climb_scale": task.climb_scale, "w_bank": cfg.w_bank,
+        "sigma_bank": cfg.sigma_bank, "w_climb": cfg.w_climb,
+        "sigma_climb": cfg.sigma_climb_fraction * env.climb_rate_limit, "w_airspeed": cfg.w_airspeed,
+        "sigma_airspeed": cfg.sigma_airspeed_fraction * env.cruise_speed, "w_energy": cfg.w_energy,
+        "safe_airspeed": task.safe_airspeed, "w_smooth": cfg.w_smooth, "stall_alpha": task.stall_alpha,
+        "stall_speed": task.stall_speed, "observation_clip": task.observation_clip,
+    }
+    stream = task.random_stream
+    if stream is not None:
+        lo, hi = stream.hold_seconds
+        values.update({"random": 1, "stream_dt": stream.dt, "target_low": tuple(stream.low.tolist()),
+                       "target_span": tuple((stream.high - stream.low).tolist()),
+                       "slew_min": tuple((-stream.rate * stream.dt).tolist()),
+                       "slew_max": tuple((stream.rate * stream.dt).tolist()), "hold_low": lo,
+                       "hold_span": hi - lo})
+    else:
+        assert task.table is not None
+        values["table_last"] = task.table.shape[0] - 1
+    constants = fill_struct(AttitudeConstants(), values)
+    constants.table_last = wp.int64(values["table_last"])
+    return constants
+
+
+class FusedAttitudeStep(FusedStep):
+    """The recorded launch of :func:`attitude_step_kernel` for one attitude task: observation [N, 15],
+    reward [N], reason [N] long, and the random stream's uniforms [N, 4] drawn before each launch."""
+
+    kernel = attitude_step_kernel
+    task: AttitudeTask
+
+    def __init__(self, task: AttitudeTask):
+        super().__init__(task)
+        n, kw = task.num_envs, {"device": task.device, "dtype": torch.float32}
+        self.draws = torch.zeros(n if task.random_stream is not None else 1, 4, **kw)
+        #: Placeholders for the buffers of the other command source (never read by the kernel).
+        self._unused = {"vec3": torch.zeros(1, 3, **kw), "scalar": torch.zeros(1, **kw)}
+        self.bind()
+
+    def task_inputs(self) -> list[Any]:
+        task = self.task
+        stream = task.random_stream
+        vec3, scalar = self._unused["vec3"], self._unused["scalar"]
+        return [fill_struct(AttitudeBuffers(), {
+            "time": task.time, "step_index": task.step_index, "commanded": task.commanded,
+            "errors": task.errors, "previous_action": task.previous_action, "action": self.action,
+            "stream_command": stream.command if stream is not None else vec3,
+            "stream_target": stream.target if stream is not None else vec3,
+            "stream_timer": stream.timer if stream is not None else scalar, "draws": self.draws,
+            "table": task.table if task.table is not None else vec3,
+        }), attitude_constants(task)]
+
+    def draw(self) -> None:
+        """The random stream's uniforms [N, 4], drawn as ``RandomCommandStream._draw`` does each step."""
+        stream = self.task.random_stream
+        if stream is not None:
+            torch.rand(self.draws.shape, generator=stream.generator, device=self.draws.device,
+                       dtype=self.draws.dtype, out=self.draws)

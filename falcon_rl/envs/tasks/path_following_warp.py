@@ -1,0 +1,150 @@
+"""The path-following task's step in one Warp kernel (``PathFollowingTask.fused_step`` on the warp
+backend).
+
+:func:`path_following_step_kernel` does for env i what ``PathFollowingTask.step(sim.state, action)``
+does: it advances the clock, computes the cross-track, course and altitude errors from
+``warp_common.flight_state``, and writes the reward, the termination reason ("lost" after the shared
+reasons) and the clipped observation. The step draws no random numbers.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Any
+
+import warp as wp
+
+from ...constants import DEG
+from ...physics.warp_kernels import flush_denormals_begin, flush_denormals_end
+from .warp_common import (
+    FusedStep,
+    SimulatorViews,
+    airspeed_margin_penalty_wp,
+    clip,
+    fill_struct,
+    flight_state,
+    gaussian_wp,
+    termination_code,
+    wrap_angle_wp,
+)
+
+if TYPE_CHECKING:
+    from .path_following import PathFollowingTask
+
+
+@wp.struct
+class PathFollowingBuffers:
+    """The task's per-env buffers (views of PathFollowingTask's tensors) and the actions [N] vec4."""
+
+    time: wp.array(dtype=wp.float32)
+    path_point: wp.array(dtype=wp.vec2)
+    path_course: wp.array(dtype=wp.float32)
+    errors: wp.array(dtype=wp.vec3)
+    previous_action: wp.array(dtype=wp.vec4)
+    action: wp.array(dtype=wp.vec4)
+
+
+@wp.struct
+class PathFollowingConstants:
+    """Config and airframe constants, each the float32 the torch step's scalar becomes."""
+
+    env_dt: float
+    path_height: float
+    lost_distance: float
+    climb_rate_limit: float
+    cruise_speed: float
+    airspeed_sigma: float  # airspeed_scale x cruise
+    angle_scale: float  # pi / 4
+    air_angle_scale: float  # 20 deg
+    w_cross_track: float
+    sigma_cross_track: float
+    w_course: float
+    sigma_course: float
+    w_altitude: float
+    sigma_altitude: float
+    w_energy: float
+    safe_airspeed: float
+    w_smooth: float
+    stall_alpha: float
+    stall_speed: float
+    observation_clip: float
+
+
+@wp.kernel
+def path_following_step_kernel(sim: SimulatorViews, buf: PathFollowingBuffers, c: PathFollowingConstants,
+                               observation: wp.array2d(dtype=wp.float32), reward: wp.array(dtype=wp.float32),
+                               reason: wp.array(dtype=wp.int64), offset: int):
+    """One path-following step of env i = offset + tid after the physics: updates the buffers in place
+    and writes observation [N, 17], reward [N] and the termination reason [N] (0: flying)."""
+    i = wp.tid() + offset
+    saved = flush_denormals_begin()
+    f = flight_state(sim, i)
+    buf.time[i] = buf.time[i] + c.env_dt
+    # update: (e_y, chi_err, e_h)
+    point = buf.path_point[i]
+    course = buf.path_course[i]
+    rel_north = f.position_ned[0] - point[0]
+    rel_east = f.position_ned[1] - point[1]
+    cross_track = -wp.sin(course) * rel_north + wp.cos(course) * rel_east
+    v = f.velocity_ned
+    course_error = wrap_angle_wp(wp.atan2(v[1], v[0]) - course)
+    altitude_error = f.height - c.path_height
+    buf.errors[i] = wp.vec3(cross_track, course_error, altitude_error)
+    # reward
+    action = buf.action[i]
+    action_rate = wp.length_sq(action - buf.previous_action[i])
+    reward[i] = (c.w_cross_track * gaussian_wp(cross_track, c.sigma_cross_track)
+                 + c.w_course * gaussian_wp(course_error, c.sigma_course)
+                 + c.w_altitude * gaussian_wp(altitude_error, c.sigma_altitude)
+                 - c.w_energy * airspeed_margin_penalty_wp(f.airspeed, c.safe_airspeed)
+                 - c.w_smooth * action_rate)
+    reason[i] = termination_code(f, c.stall_alpha, c.stall_speed, wp.abs(cross_track) > c.lost_distance)
+    buf.previous_action[i] = action
+    # observation, clipped
+    lim = c.observation_clip
+    observation[i, 0] = clip(cross_track / 50.0, lim)
+    observation[i, 1] = clip(wp.sin(course_error), lim)
+    observation[i, 2] = clip(wp.cos(course_error), lim)
+    observation[i, 3] = clip(altitude_error / 25.0, lim)
+    observation[i, 4] = clip(v[2] / c.climb_rate_limit, lim)
+    observation[i, 5] = clip((f.airspeed - c.cruise_speed) / c.airspeed_sigma, lim)
+    observation[i, 6] = clip(f.euler[0] / c.angle_scale, lim)
+    observation[i, 7] = clip(f.euler[1] / c.angle_scale, lim)
+    observation[i, 8] = clip(f.alpha / c.air_angle_scale, lim)
+    observation[i, 9] = clip(f.beta / c.air_angle_scale, lim)
+    for k in range(3):
+        observation[i, 10 + k] = clip(f.angular_rate[k] / 2.0, lim)
+    for k in range(4):
+        observation[i, 13 + k] = clip(action[k], lim)
+    flush_denormals_end(saved)
+
+
+class FusedPathFollowingStep(FusedStep):
+    """The recorded launch of :func:`path_following_step_kernel` for one path-following task:
+    observation [N, 17], reward [N], reason [N] long."""
+
+    kernel = path_following_step_kernel
+    task: PathFollowingTask
+
+    def __init__(self, task: PathFollowingTask):
+        super().__init__(task)
+        self.bind()
+
+    def task_inputs(self) -> list[Any]:
+        task = self.task
+        cfg = task.config
+        env = task.airframe.envelope
+        buf = fill_struct(PathFollowingBuffers(), {
+            "time": task.time, "path_point": task.path_point, "path_course": task.path_course,
+            "errors": task.errors, "previous_action": task.previous_action, "action": self.action})
+        constants = fill_struct(PathFollowingConstants(), {
+            "env_dt": task.env_dt, "path_height": cfg.initial_height, "lost_distance": cfg.lost_distance,
+            "climb_rate_limit": env.climb_rate_limit, "cruise_speed": env.cruise_speed,
+            "airspeed_sigma": cfg.airspeed_scale * env.cruise_speed, "angle_scale": math.pi / 4,
+            "air_angle_scale": 20.0 * DEG, "w_cross_track": cfg.w_cross_track,
+            "sigma_cross_track": cfg.sigma_cross_track, "w_course": cfg.w_course,
+            "sigma_course": cfg.sigma_course, "w_altitude": cfg.w_altitude,
+            "sigma_altitude": cfg.sigma_altitude, "w_energy": cfg.w_energy,
+            "safe_airspeed": task.safe_airspeed, "w_smooth": cfg.w_smooth, "stall_alpha": task.stall_alpha,
+            "stall_speed": task.stall_speed, "observation_clip": task.observation_clip})
+        return [buf, constants]

@@ -1,0 +1,165 @@
+"""The trajectory task's step in one Warp kernel (``TrajectoryTask.fused_step`` on the warp backend).
+
+:func:`trajectory_step_kernel` does for env i what ``TrajectoryTask.step(sim.state, action)`` does: it
+advances the clock and the reference point along its helix arc (closed form), rotates the position
+and velocity errors into the heading frame using ``warp_common.flight_state``, and writes the reward,
+the termination reason ("lost" after the shared reasons) and the clipped observation. The step draws
+no random numbers.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Any
+
+import warp as wp
+
+from ...constants import DEG
+from ...physics.warp_kernels import flush_denormals_begin, flush_denormals_end
+from .warp_common import (
+    FusedStep,
+    SimulatorViews,
+    airspeed_margin_penalty_wp,
+    clip,
+    fill_struct,
+    flight_state,
+    gaussian_wp,
+    termination_code,
+)
+
+if TYPE_CHECKING:
+    from .trajectory import TrajectoryTask
+
+
+@wp.struct
+class TrajectoryBuffers:
+    """The task's per-env buffers (views of TrajectoryTask's tensors) and the actions [N] vec4."""
+
+    time: wp.array(dtype=wp.float32)
+    start: wp.array(dtype=wp.vec3)
+    radius: wp.array(dtype=wp.float32)
+    turn: wp.array(dtype=wp.float32)
+    climb: wp.array(dtype=wp.float32)
+    reference_position: wp.array(dtype=wp.vec3)
+    reference_velocity: wp.array(dtype=wp.vec3)
+    position_error: wp.array(dtype=wp.vec3)
+    velocity_error: wp.array(dtype=wp.vec3)
+    position_error_ned: wp.array(dtype=wp.vec3)
+    previous_action: wp.array(dtype=wp.vec4)
+    action: wp.array(dtype=wp.vec4)
+
+
+@wp.struct
+class TrajectoryConstants:
+    """Config and airframe constants, each the float32 the torch step's scalar becomes."""
+
+    env_dt: float
+    speed: float  # cruise speed V of the reference
+    lost_distance: float
+    velocity_scale: float  # airspeed_scale x V
+    angle_scale: float  # pi / 4
+    air_angle_scale: float  # 20 deg
+    w_position: float
+    sigma_position: float
+    w_velocity: float
+    sigma_velocity: float  # sigma_velocity_fraction x V
+    w_energy: float
+    safe_airspeed: float
+    w_smooth: float
+    stall_alpha: float
+    stall_speed: float
+    observation_clip: float
+
+
+@wp.func
+def heading_frame(e: wp.vec3, sin_yaw: float, cos_yaw: float) -> wp.vec3:
+    """NED vector ``e`` in the heading frame (forward, right, down) of yaw psi."""
+    return wp.vec3(cos_yaw * e[0] + sin_yaw * e[1], -sin_yaw * e[0] + cos_yaw * e[1], e[2])
+
+
+@wp.kernel
+def trajectory_step_kernel(sim: SimulatorViews, buf: TrajectoryBuffers, c: TrajectoryConstants,
+                           observation: wp.array2d(dtype=wp.float32), reward: wp.array(dtype=wp.float32),
+                           reason: wp.array(dtype=wp.int64), offset: int):
+    """One trajectory-task step of env i = offset + tid after the physics: updates the buffers in place
+    and writes observation [N, 17], reward [N] and the termination reason [N] (0: flying)."""
+    i = wp.tid() + offset
+    saved = flush_denormals_begin()
+    f = flight_state(sim, i)
+    # advance: clock and reference point (p_ref, v_ref)
+    time = buf.time[i] + c.env_dt
+    buf.time[i] = time
+    radius = buf.radius[i]
+    turn = buf.turn[i]
+    climb = buf.climb[i]
+    angle = c.speed / radius * time
+    s = wp.sin(angle)
+    co = wp.cos(angle)
+    reference_position = buf.start[i] + wp.vec3(radius * s, turn * radius * (1.0 - co), -climb * time)
+    reference_velocity = wp.vec3(c.speed * co, turn * c.speed * s, -climb)
+    buf.reference_position[i] = reference_position
+    buf.reference_velocity[i] = reference_velocity
+    # update: errors, NED and heading frame
+    yaw = f.euler[2]
+    sin_yaw = wp.sin(yaw)
+    cos_yaw = wp.cos(yaw)
+    e_p = f.position_ned - reference_position
+    position_error = heading_frame(e_p, sin_yaw, cos_yaw)
+    velocity_error = heading_frame(f.velocity_ned - reference_velocity, sin_yaw, cos_yaw)
+    buf.position_error_ned[i] = e_p
+    buf.position_error[i] = position_error
+    buf.velocity_error[i] = velocity_error
+    # reward
+    distance = wp.length(position_error)
+    action = buf.action[i]
+    action_rate = wp.length_sq(action - buf.previous_action[i])
+    reward[i] = (c.w_position * gaussian_wp(distance, c.sigma_position)
+                 + c.w_velocity * gaussian_wp(wp.length(velocity_error), c.sigma_velocity)
+                 - c.w_energy * airspeed_margin_penalty_wp(f.airspeed, c.safe_airspeed)
+                 - c.w_smooth * action_rate)
+    reason[i] = termination_code(f, c.stall_alpha, c.stall_speed, distance > c.lost_distance)
+    buf.previous_action[i] = action
+    # observation, clipped
+    lim = c.observation_clip
+    for k in range(3):
+        observation[i, k] = clip(position_error[k] / 25.0, lim)
+        observation[i, 3 + k] = clip(velocity_error[k] / c.velocity_scale, lim)
+        observation[i, 8 + k] = clip(f.angular_rate[k] / 2.0, lim)
+    observation[i, 6] = clip(f.euler[0] / c.angle_scale, lim)
+    observation[i, 7] = clip(f.euler[1] / c.angle_scale, lim)
+    observation[i, 11] = clip(f.alpha / c.air_angle_scale, lim)
+    observation[i, 12] = clip(f.beta / c.air_angle_scale, lim)
+    for k in range(4):
+        observation[i, 13 + k] = clip(action[k], lim)
+    flush_denormals_end(saved)
+
+
+class FusedTrajectoryStep(FusedStep):
+    """The recorded launch of :func:`trajectory_step_kernel` for one trajectory task: observation
+    [N, 17], reward [N], reason [N] long."""
+
+    kernel = trajectory_step_kernel
+    task: TrajectoryTask
+
+    def __init__(self, task: TrajectoryTask):
+        super().__init__(task)
+        self.bind()
+
+    def task_inputs(self) -> list[Any]:
+        task = self.task
+        cfg = task.config
+        buf = fill_struct(TrajectoryBuffers(), {
+            name: getattr(task, name)
+            for name in ("time", "start", "radius", "turn", "climb", "reference_position",
+                         "reference_velocity", "position_error", "velocity_error", "position_error_ned",
+                         "previous_action")})
+        fill_struct(buf, {"action": self.action})
+        constants = fill_struct(TrajectoryConstants(), {
+            "env_dt": task.env_dt, "speed": task.speed, "lost_distance": cfg.lost_distance,
+            "velocity_scale": cfg.airspeed_scale * task.speed, "angle_scale": math.pi / 4,
+            "air_angle_scale": 20.0 * DEG, "w_position": cfg.w_position, "sigma_position": cfg.sigma_position,
+            "w_velocity": cfg.w_velocity, "sigma_velocity": cfg.sigma_velocity_fraction * task.speed,
+            "w_energy": cfg.w_energy, "safe_airspeed": task.safe_airspeed, "w_smooth": cfg.w_smooth,
+            "stall_alpha": task.stall_alpha, "stall_speed": task.stall_speed,
+            "observation_clip": task.observation_clip})
+        return [buf, constants]
