@@ -235,25 +235,12 @@ class AltitudeTask(Task):
         when a subclass overrides a method of the step): (observation [N, 11], reward [N], reason [N]
         long), buffers overwritten by the next call. With ``target_sequence`` the random shift is drawn
         from the task's generator in torch before the launch, exactly as :meth:`step` draws it."""
-        if not self._fusable():
-            return None
-        fused = getattr(self, "_fused", None)  # absent in a task pickled before the fused step existed
-        if fused is None:
-            from .altitude_warp import FusedAltitudeStep
-
-            fused = self._fused = FusedAltitudeStep(self)
-        return fused(action)
-
-    def _fusable(self) -> bool:
-        """The warp backend, and the step is this class's (a subclass may change only the episode draws)."""
         if self.sim.backend != "warp":
-            return False
-        cls = type(self)
-        return all(getattr(cls, name) is getattr(AltitudeTask, name) for name in _FUSED_METHODS)
+            return None
+        from .altitude_warp import FusedAltitudeStep
+        from .warp_common import run_fused
 
-    def __getstate__(self) -> dict:
-        """The plain state: the fused step's Warp binding is made again after unpickling."""
-        return {**self.__dict__, "_fused": None}
+        return run_fused(self, AltitudeTask, _FUSED_METHODS, FusedAltitudeStep, action)
 
     def info(self) -> dict[str, torch.Tensor]:
         return {

@@ -182,10 +182,6 @@ class AttitudeTask(Task):
 
         return run_fused(self, AttitudeTask, _FUSED_METHODS, FusedAttitudeStep, action)
 
-    def __getstate__(self) -> dict:
-        """The plain state: the fused step's Warp binding is made again after unpickling."""
-        return {**self.__dict__, "_fused": None}
-
     def info(self) -> dict[str, torch.Tensor]:
         return {
             "bank_command": self.commanded[:, 0].clone(),

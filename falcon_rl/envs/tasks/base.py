@@ -233,6 +233,10 @@ class Task(ABC):
         tensors may be buffers that the next call overwrites (the env derives fresh ones)."""
         return None
 
+    def __getstate__(self) -> dict:
+        """The plain state: a fused step's backend binding (``_fused``) is made again after unpickling."""
+        return {**self.__dict__, "_fused": None}
+
     @abstractmethod
     def info(self) -> dict[str, torch.Tensor]:
         """Task quantities published under ("task", name): references and tracking errors."""

@@ -150,10 +150,6 @@ class PathFollowingTask(Task):
 
         return run_fused(self, PathFollowingTask, _FUSED_METHODS, FusedPathFollowingStep, action)
 
-    def __getstate__(self) -> dict:
-        """The plain state: the fused step's Warp binding is made again after unpickling."""
-        return {**self.__dict__, "_fused": None}
-
     def info(self) -> dict[str, torch.Tensor]:
         return {"cross_track_error": self.errors[:, 0].clone(), "course_error": self.errors[:, 1].clone(),
                 "altitude_error": self.errors[:, 2].clone(), "path_point": self.path_point.clone(),

@@ -177,10 +177,6 @@ class TrajectoryTask(Task):
 
         return run_fused(self, TrajectoryTask, _FUSED_METHODS, FusedTrajectoryStep, action)
 
-    def __getstate__(self) -> dict:
-        """The plain state: the fused step's Warp binding is made again after unpickling."""
-        return {**self.__dict__, "_fused": None}
-
     def info(self) -> dict[str, torch.Tensor]:
         return {"position_error": torch.linalg.vector_norm(self.position_error, dim=-1),
                 "position_error_ned": self.position_error_ned.clone(),
