@@ -1,7 +1,10 @@
 """Stable-Baselines3 PPO throughput on one batched simulator (``FalconSB3VecEnv``) at several env
 counts, against SB3 on one Gymnasium env (``DummyVecEnv`` of one ``gymnasium.make``), in one run.
 
-    python benchmarks/sb3_throughput.py --envs 1,64,256,1024 --repeats 3 [--json out.json]
+    python benchmarks/sb3_throughput.py --envs 1,64,256,1024 --repeats 3 [--torchrl-path] [--json out.json]
+
+``--torchrl-path`` adds each adapter stepping through TorchRL's ``step_and_maybe_reset`` instead of
+the env's tensor core (``fast_path=False``), the path the fast one replaces.
 
 Method: every case trains the same PPO (MlpPolicy 64x64, ``--rollout`` samples per update, i.e.
 n_steps = rollout / N, ``--epochs`` epochs of minibatches of ``--batch``), so the training cost per
@@ -89,11 +92,12 @@ def spread(values: list[float]) -> str:
 def report(cases: list[Case]) -> None:
     """Print the table: medians, min-max and ratios to the baseline (the first case)."""
     base_learn, base_collect = (statistics.median(values) for values in (cases[0].learn, cases[0].collect))
-    print(f"\n{'case':<34} {'envs':>5} {'learn steps/s':>10} {'min-max':>21} {'x':>6}   "
+    width = max(len(case.label) for case in cases)
+    print(f"\n{'case':<{width}} {'envs':>5} {'learn steps/s':>10} {'min-max':>21} {'x':>6}   "
           f"{'collect steps/s':>10} {'min-max':>21} {'x':>6}")
     for case in cases:
         learn, collect = statistics.median(case.learn), statistics.median(case.collect)
-        print(f"{case.label:<34} {case.num_envs:>5} {spread(case.learn)} {learn / base_learn:>6.1f}   "
+        print(f"{case.label:<{width}} {case.num_envs:>5} {spread(case.learn)} {learn / base_learn:>6.1f}   "
               f"{spread(case.collect)} {collect / base_collect:>6.1f}")
 
 
@@ -110,6 +114,8 @@ def main() -> None:
     parser.add_argument("--updates", type=int, default=2, help="timed PPO updates per round")
     parser.add_argument("--repeats", type=int, default=3, help="timed rounds")
     parser.add_argument("--threads", type=int, default=1, help="torch CPU threads (the policy)")
+    parser.add_argument("--torchrl-path", action="store_true",
+                        help="also time each adapter on TorchRL's step (fast_path=False)")
     parser.add_argument("--json", default=None, help="also write the results to this JSON file")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
@@ -121,9 +127,11 @@ def main() -> None:
     gym_id = GYM_IDS[args.task]
     builders = [("SB3 DummyVecEnv(1 x gymnasium.make)",
                  lambda: DummyVecEnv([lambda: gym.make(gym_id, **options)]))]
-    builders += [(f"FalconSB3VecEnv (one batch of {n})",
-                  lambda n=n: FalconSB3VecEnv.make(args.task, num_envs=n, **options))
-                 for n in (int(v) for v in args.envs.split(","))]
+    paths = {"": True, ", TorchRL path": False} if args.torchrl_path else {"": True}
+    builders += [(f"FalconSB3VecEnv (one batch of {n}{name})",
+                  lambda n=n, fast=fast: FalconSB3VecEnv.make(args.task, num_envs=n, fast_path=fast,
+                                                              **options))
+                 for n in (int(v) for v in args.envs.split(",")) for name, fast in paths.items()]
     runs = []
     for label, make in builders:
         print(f"building and warming up: {label}", flush=True)

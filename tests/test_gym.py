@@ -1,15 +1,18 @@
 """The single-aircraft Gymnasium wrapper: registration, env_checker, horizon and TimeLimit, seeding,
-the action contract, and a short Stable-Baselines3 PPO run."""
+the action contract, the tensor-core path against TorchRL's step, and a short Stable-Baselines3 PPO
+run."""
 
 from __future__ import annotations
 
 import gymnasium as gym
 import numpy as np
 import pytest
+import torch
 from gymnasium.utils.env_checker import check_env
 
 import falcon_rl  # noqa: F401  (registers falcon_rl/<Task>-v0)
 from falcon_rl.envs.gym import GYM_IDS, VECTOR_ENTRY_POINT, CoreAircraftEnv
+from falcon_rl.envs.tasks import TERMINATION_CODE
 
 #: Five env steps per episode (10 ms control).
 SHORT = {"decimation": 1, "episode_seconds": 0.05}
@@ -96,6 +99,74 @@ def test_wrong_actions_are_refused_before_anything_moves(action: object) -> None
     assert "\n" not in str(refused.value)
     good = np.array([0.3, -0.2], np.float32)
     np.testing.assert_array_equal(env.step(good)[0], twin.step(good)[0])
+
+
+def assert_identical(fast: object, slow: object, where: str = "") -> None:
+    """``fast`` and ``slow`` hold the same values with the same types: dicts with the same keys in the
+    same order, arrays of one dtype and shape with equal entries (and no NaN or Inf in a float one),
+    Python scalars of one type, sequences item by item."""
+    assert type(fast) is type(slow), f"{where}: {type(fast).__name__} != {type(slow).__name__}"
+    if isinstance(fast, dict):
+        assert list(fast) == list(slow), f"{where}: keys {list(fast)} != {list(slow)}"
+        for key in fast:
+            assert_identical(fast[key], slow[key], f"{where}[{key!r}]")
+    elif isinstance(fast, list | tuple):
+        assert len(fast) == len(slow), f"{where}: {len(fast)} != {len(slow)} items"
+        for index, (a, b) in enumerate(zip(fast, slow, strict=True)):
+            assert_identical(a, b, f"{where}[{index}]")
+    elif isinstance(fast, np.ndarray):
+        assert (fast.dtype, fast.shape) == (slow.dtype, slow.shape), f"{where}: {fast.dtype} {fast.shape} " \
+                                                                       f"!= {slow.dtype} {slow.shape}"
+        if fast.dtype == object:
+            assert_identical(list(fast), list(slow), where)
+        else:
+            np.testing.assert_array_equal(fast, slow, err_msg=where, strict=True)
+            assert fast.dtype.kind != "f" or np.isfinite(fast).all(), f"{where}: not finite"
+    else:
+        assert fast == slow, f"{where}: {fast!r} != {slow!r}"
+
+
+def _single_action(rng: np.random.Generator, step: int) -> np.ndarray:
+    """Step ``step``'s action: uniform in [-1.5, 1.5] (float64 on even steps), full up elevator from
+    step 40 (an alpha stall within 20 steps), a NaN at step 3 and infinities at step 4."""
+    action = rng.uniform(-1.5, 1.5, 2)
+    if step >= 40:
+        action[0] = 1.0
+    if step == 3:
+        action[1] = np.nan
+    if step == 4:
+        action[:] = (np.inf, -np.inf)
+    return action if step % 2 == 0 else action.astype(np.float32)
+
+
+@pytest.mark.parametrize("options", [{}, {"lean": True}, {"backend": "torch", "dtype": torch.float64}],
+                         ids=["default", "lean", "torch-float64"])
+def test_tensor_core_steps_exactly_as_torchrl_step(options: dict) -> None:
+    """The fast path (the env's tensor core) and TorchRL's step, side by side from one seed: the same
+    observations, rewards, flags and infos (types included) through truncations, an alpha stall, a
+    NaN action, a NaN state (its entries zeroed), infinite actions, reseeded and unseeded resets."""
+    fast = CoreAircraftEnv("altitude", seed=3, episode_seconds=1.5, **options)  # 30 steps
+    slow = CoreAircraftEnv("altitude", seed=3, episode_seconds=1.5, fast_path=False, **options)
+    assert fast.core is not None and slow.core is None
+    rng, reasons = np.random.default_rng(0), []
+    assert_identical(fast.reset(seed=11), slow.reset(seed=11), "reset")
+    for step in range(65):
+        action = _single_action(rng, step)
+        if step == 10:
+            for env in (fast, slow):
+                env.env.sim.x[0] = float("nan")
+        result = fast.step(action)
+        assert_identical(result, slow.step(action), f"step {step}")
+        if result[2] or result[3]:
+            reasons.append(result[4]["termination_reason"])
+            seed = None if step % 2 else step
+            assert_identical(fast.reset(seed=seed), slow.reset(seed=seed), f"reset after step {step}")
+    assert {0, TERMINATION_CODE["non_finite"], TERMINATION_CODE["alpha_stall"]} <= set(reasons)
+
+
+def test_robustness_options_step_through_torchrl() -> None:
+    assert CoreAircraftEnv("altitude", seed=0, sensors="mild").core is None  # a TransformedEnv
+    assert CoreAircraftEnv("altitude", seed=0).core is not None
 
 
 @pytest.mark.slow

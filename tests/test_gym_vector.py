@@ -1,5 +1,6 @@
 """The native batched Gymnasium VectorEnv: make_vec registration, spaces, shapes and dtypes, the
-vector info convention, SAME_STEP autoreset (exact), seeding, and the action contract.
+vector info convention, SAME_STEP autoreset (exact), partial resets, seeding, the action contract, and
+the tensor-core path against TorchRL's step_and_maybe_reset.
 
 Gymnasium 1.4 ships no vector env checker; its seed and options checks of ``env_checker`` run on the
 vector env as they are, and the rest is asserted here.
@@ -13,10 +14,12 @@ import pytest
 import torch
 from gymnasium.utils.env_checker import check_reset_options, check_reset_seed_determinism
 from gymnasium.vector import AutoresetMode
+from test_gym import assert_identical
 from torchrl.envs.utils import step_mdp
 
 import falcon_rl  # noqa: F401  (registers falcon_rl/<Task>-v0)
 from falcon_rl.envs import make_env
+from falcon_rl.envs.gym import GYM_IDS
 from falcon_rl.envs.gym_vector import FalconVectorEnv
 from falcon_rl.envs.tasks import TERMINATION_CODE
 
@@ -106,9 +109,11 @@ def test_partial_resets_and_per_env_masks() -> None:
     actions = np.zeros((4, 2), np.float32)
     envs.reset(seed=0)
     envs.step(actions)
-    envs.step(actions)
-    _, info = envs.reset(options={"reset_mask": np.array([True, False, False, False])})
+    before = envs.step(actions)[0]
+    obs, info = envs.reset(options={"reset_mask": np.array([True, False, False, False])})
     assert info["_altitude_error"].tolist() == [True, False, False, False]
+    np.testing.assert_array_equal(obs[1:], before[1:])  # the other rows keep their observation
+    assert not np.array_equal(obs[0], before[0])
     for _ in range(2):
         assert not envs.step(actions)[3].any()
     _, _, _, truncated, info = envs.step(actions)  # rows 1-3 reach 5 steps, row 0 has 3
@@ -166,3 +171,76 @@ def test_misuse_is_refused_in_one_line() -> None:
     envs.reset(seed=0)
     with pytest.raises(ValueError, match="reset_mask"):
         envs.reset(options={"reset_mask": np.zeros(2, bool)})
+
+
+def _parity_actions(rng: np.random.Generator, step: int, num_envs: int, action_dim: int) -> np.ndarray:
+    """Step ``step``'s actions [N, A]: uniform in [-1.5, 1.5] (float64 on even steps), rows 4 and 5 at
+    full up and full down elevator (alpha stalls), a NaN in row 0 at step 3, infinities in row 1 at
+    step 4."""
+    actions = rng.uniform(-1.5, 1.5, (num_envs, action_dim))
+    actions[4:6, 0] = (1.0, -1.0)
+    if step == 3:
+        actions[0, -1] = np.nan
+    if step == 4:
+        actions[1] = np.where(np.arange(action_dim) % 2, -np.inf, np.inf)
+    return actions if step % 2 == 0 else actions.astype(np.float32)
+
+
+def _scribble(value: object) -> None:
+    """Overwrite every array in ``value`` (nested dicts, tuples, object arrays) in place, as a user may:
+    the env must not keep views of what it hands out."""
+    if isinstance(value, dict):
+        for item in value.values():
+            _scribble(item)
+    elif isinstance(value, tuple | list):
+        for item in value:
+            _scribble(item)
+    elif isinstance(value, np.ndarray) and value.dtype == object:
+        _scribble(list(value))
+    elif isinstance(value, np.ndarray) and value.flags.writeable:
+        value[...] = 7
+
+
+#: (task, env options, host arrays from one packed copy as off the CPU).
+PARITY_CASES = [(task, {}, False) for task in sorted(GYM_IDS)] + [
+    ("altitude", {"lean": True}, False), ("altitude", {"backend": "torch", "dtype": torch.float64}, False),
+    ("altitude", {}, True), ("trajectory", {"backend": "torch", "dtype": torch.float64}, True)]
+
+
+@pytest.mark.parametrize(("task", "options", "pack"), PARITY_CASES,
+                         ids=[*sorted(GYM_IDS), "altitude-lean", "altitude-torch-float64", "altitude-packed",
+                              "trajectory-torch-float64-packed"])
+def test_tensor_core_steps_exactly_as_torchrl_step_and_maybe_reset(task: str, options: dict,
+                                                                   pack: bool) -> None:
+    """The fast path (the env's tensor core) and TorchRL's step_and_maybe_reset, side by side from one
+    seed: the same observations, rewards, flags and infos (final_obs and final_info included) through
+    autoresets after truncations, alpha stalls, NaN actions and a NaN state, a partial reset and a
+    reseeded reset; what the fast path hands out is overwritten each time (it keeps no view of it)."""
+    fast = FalconVectorEnv(6, task, seed=4, episode_seconds=1.0, **options)  # 20 steps per episode
+    slow = FalconVectorEnv(6, task, seed=4, episode_seconds=1.0, fast_path=False, **options)
+    assert fast.core is not None and slow.core is None
+    fast.core.pack = pack
+    rng, seen = np.random.default_rng(1), set()
+
+    def same(outputs: tuple, reference: tuple, where: str) -> None:
+        assert_identical(outputs, reference, where)
+        _scribble(outputs)
+
+    same(fast.reset(seed=5), slow.reset(seed=5), "reset")
+    for step in range(45):
+        if step == 12:
+            mask = np.array([True, False, False, True, False, False])
+            same(fast.reset(options={"reset_mask": mask}), slow.reset(options={"reset_mask": mask}),
+                 "partial reset")
+        if step == 30:
+            same(fast.reset(seed=6), slow.reset(seed=6), "reseeded reset")
+        if step == 35:
+            for envs in (fast, slow):  # a NaN in row 2's state: terminated, its entries zeroed
+                envs.env.sim.x[2] = float("nan")
+        actions = _parity_actions(rng, step, 6, fast.single_action_space.shape[0])
+        result = fast.step(actions)
+        if "final_info" in result[4]:
+            final = result[4]["final_info"]
+            seen |= set(final["termination_reason"][final["_termination_reason"]].tolist())
+        same(result, slow.step(actions), f"step {step}")
+    assert {0, TERMINATION_CODE["alpha_stall"], TERMINATION_CODE["non_finite"]} <= seen

@@ -1,5 +1,6 @@
 """The Stable-Baselines3 VecEnv adapter over one batched simulator: SB3's checks and conventions
-(terminal_observation, TimeLimit.truncated, seed), attributes and methods, and a short PPO run."""
+(terminal_observation, TimeLimit.truncated, seed), attributes and methods, the tensor-core path
+against TorchRL's, and a short PPO run."""
 
 from __future__ import annotations
 
@@ -17,11 +18,13 @@ sb3 = pytest.importorskip("stable_baselines3")
 from stable_baselines3.common.env_checker import check_env  # noqa: E402
 from stable_baselines3.common.monitor import Monitor  # noqa: E402
 from stable_baselines3.common.vec_env import VecMonitor  # noqa: E402
+from test_gym import assert_identical  # noqa: E402
 
 import falcon_rl  # noqa: E402, F401  (registers falcon_rl/<Task>-v0)
 from falcon_rl.envs.gym import GYM_IDS  # noqa: E402
 from falcon_rl.envs.gym_vector import FalconVectorEnv  # noqa: E402
 from falcon_rl.envs.sb3 import FalconSB3VecEnv  # noqa: E402
+from falcon_rl.envs.tasks import TERMINATION_CODE  # noqa: E402
 
 #: Five env steps per episode (10 ms control).
 SHORT = {"decimation": 1, "episode_seconds": 0.05}
@@ -92,6 +95,39 @@ def test_wrong_actions_are_refused() -> None:
     for actions in (np.zeros((4, 1), np.float32), np.zeros((4, 2), bool), np.zeros((4, 2), np.complex64)):
         with pytest.raises(ValueError, match="actions"):
             venv.step(actions)
+
+
+@pytest.mark.parametrize("info_keys", [(), ("altitude_error", "termination_reason")], ids=["bare", "keys"])
+def test_tensor_core_adapter_steps_exactly_as_the_torchrl_path(info_keys: tuple[str, ...]) -> None:
+    """Fast path and TorchRL path side by side from one seed: the same obs, rewards, dones, infos
+    (terminal_observation, TimeLimit.truncated, task entries) and reset_infos through truncations,
+    alpha stalls, a NaN action, a NaN state, and a reseeded reset."""
+    fast = FalconSB3VecEnv.make("altitude", num_envs=4, info_keys=info_keys, seed=2, episode_seconds=1.0)
+    slow = FalconSB3VecEnv.make("altitude", num_envs=4, info_keys=info_keys, seed=2, episode_seconds=1.0,
+                                fast_path=False)
+    assert fast.venv.core is not None and slow.venv.core is None
+    rng, reasons = np.random.default_rng(3), set()
+    for step in range(45):
+        if step in (0, 30):
+            for venv in (fast, slow):
+                venv.seed(step)
+            assert_identical(fast.reset(), slow.reset(), "reset")
+        if step == 12:
+            for venv in (fast, slow):
+                venv.venv.env.sim.x[3] = float("nan")
+        actions = rng.uniform(-1.2, 1.2, (4, 2)).astype(np.float32)
+        actions[2, 0] = 1.0  # full up elevator: alpha stalls
+        actions[1, 1] = np.nan if step == 5 else actions[1, 1]
+        fast.step_async(actions)
+        slow.step_async(actions)
+        result = fast.step_wait()
+        assert_identical(result, slow.step_wait(), f"step {step}")
+        assert_identical(fast.reset_infos, slow.reset_infos, f"reset_infos {step}")
+        terminal = [info for info in result[3] if "terminal_observation" in info]
+        reasons |= {info.get("termination_reason", -1) for info in terminal}
+        assert len(terminal) == int(result[2].sum())
+    if info_keys:
+        assert {0, TERMINATION_CODE["alpha_stall"], TERMINATION_CODE["non_finite"]} <= reasons
 
 
 @pytest.fixture

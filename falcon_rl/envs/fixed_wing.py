@@ -294,10 +294,12 @@ class FixedWingEnv(EnvBase):
             out = self._zero_non_finite(out, step.non_finite)
         return out
 
-    def step_tensors(self, action: object) -> StepTensors:
+    def step_tensors(self, action: object, with_state: bool = True) -> StepTensors:
         """One env step without TensorDicts in or out (the core of ``step``, for the Gymnasium paths):
         ``action`` [N, A] checked (see "Actions" in the module docstring); the observation and reward
-        it returns are finite (zeroed in "non_finite" rows), the state is the simulator's as it is."""
+        it returns are finite (zeroed in "non_finite" rows), the state is the simulator's as it is.
+        ``with_state=False`` lets a task with a fused step skip building the state (``state`` is then
+        None, and the finiteness check reads the simulator's buffers instead)."""
         n = self.config.num_envs
         action, nan_action = check_action(action, n, self.task.action_dim, self.sim.dtype, self.device)
         command = self.task.command(action)
@@ -309,11 +311,9 @@ class FixedWingEnv(EnvBase):
             finite = _finite_rows(state, observation, reward)
         else:
             observation, reward, reason = fused
-            state = None if self.config.lean else self.sim.state
-            finite = (torch.isfinite(self.sim.x).all(-1) & torch.isfinite(observation).all(-1)
-                      & torch.isfinite(reward))
-            if state is not None:
-                finite &= _finite_rows(state, observation, reward)
+            state = self.sim.state if with_state and not self.config.lean else None
+            finite = (_finite_rows(state, observation, reward) if state is not None
+                      else self._finite_buffers(observation, reward))
         self.step_count += 1
         truncated = self.step_count >= self.max_episode_steps
         non_finite = nan_action | ~finite
@@ -321,6 +321,14 @@ class FixedWingEnv(EnvBase):
         observation = observation.masked_fill(non_finite[:, None] & ~torch.isfinite(observation), 0.0)
         reward = reward.masked_fill(non_finite & ~torch.isfinite(reward), 0.0)
         return StepTensors(observation, reward, reason, truncated & (reason == 0), non_finite, state)
+
+    def _finite_buffers(self, observation: torch.Tensor, reward: torch.Tensor) -> torch.Tensor:
+        """[N] bool: the simulator's integrated state, gusts and clock, the observation [N, D] and the
+        reward [N] are finite (the check without a state TensorDict)."""
+        sim, n = self.sim, self.config.num_envs
+        parts = [sim.x, sim.gust_velocity_body, sim.gust_rate_body, sim.time.reshape(n, 1), observation,
+                 reward.reshape(n, 1).to(observation.dtype)]
+        return torch.isfinite(torch.cat(parts, -1)).all(-1)
 
     @staticmethod
     def _zero_non_finite(out: TensorDictBase, rows: torch.Tensor) -> TensorDictBase:

@@ -23,10 +23,14 @@ decimation) therefore need ``max_episode_steps`` as well (or ``max_episode_steps
 Seeding: ``seed=None`` (the default) draws fresh OS entropy when the env is built, so the first
 ``reset()`` without a seed differs run to run; ``reset(seed=s)`` reseeds the env, the simulator and
 the robustness transforms, so the same ``s`` gives the same episodes. Actions follow the action
-contract (:func:`falcon_rl.transforms.action_check.check_action`): shape [A] exactly, a real float
+contract (``falcon_rl.transforms.action_check``): shape [A] exactly, a real float
 dtype; anything else raises a one-line ValueError before the env moves. ``info`` carries the task's
 references and errors (("task", ...) keys) and the env's ``termination_reason`` (an index into
 ``TERMINATION_REASONS``) as numbers or arrays.
+
+Speed: an env without robustness options steps through the env's tensor core
+(:mod:`falcon_rl.envs.gym_core`, no TensorDicts; ``fast_path=False`` turns it off), one with them
+through TorchRL's step, which runs the transforms; both give the same numbers.
 """
 
 from __future__ import annotations
@@ -41,7 +45,6 @@ from gymnasium import spaces
 from tensordict import TensorDict, TensorDictBase
 from torchrl.envs import EnvBase
 
-from ..transforms.action_check import check_action
 from .tasks.registry import TASK_SPECS, SpecView, task_spec
 
 #: Task name -> Gymnasium id (a live, read-only view of the task registry).
@@ -79,33 +82,48 @@ def single_spaces(env: EnvBase) -> tuple[spaces.Box, spaces.Box]:
     return box(env.observation_spec["observation"]), box(env.action_spec)
 
 
-def as_action(action: object, num_envs: int, action_dim: int, dtype: torch.dtype, device: torch.device,
-              name: str = "action") -> torch.Tensor:
-    """[N, A] ``dtype`` tensor on ``device`` from an array-like ``action`` [N, A] (the action contract).
-
-    Refused with a one-line ValueError: a shape other than [N, A], a bool, integer or complex dtype,
-    or something that is not a numeric array. Infinities are clamped to [-1, 1]; a NaN is passed on
-    for the env to flag (it terminates that env).
-    """
-    array = np.asarray(action) if not isinstance(action, torch.Tensor) else action
-    if isinstance(array, np.ndarray):
-        if array.dtype.kind not in "biufc":
+def action_tensor(action: object, num_envs: int, action_dim: int, name: str = "action") -> torch.Tensor:
+    """An [N, A] real floating tensor of ``action`` (a view of a writeable C-contiguous array, else a
+    copy; not yet cast, clamped or moved), or a one-line ValueError: not a numeric array, a bool,
+    integer or complex dtype, or a shape other than [N, A] (the action contract's refusals)."""
+    if isinstance(action, torch.Tensor):
+        if action.dtype == torch.bool or action.is_complex() or not action.is_floating_point():
+            raise ValueError(f"{name} must be a real floating tensor, got dtype {action.dtype}")
+        tensor = action
+    else:
+        array = np.asarray(action)
+        if array.dtype.kind != "f":
             raise ValueError(f"{name} must be a real floating array of shape [{num_envs}, {action_dim}], "
                              f"got dtype {array.dtype}")
         if not (array.flags.writeable and array.flags.c_contiguous):
             array = np.array(array)
         try:
-            array = torch.from_numpy(array)
+            tensor = torch.from_numpy(array)
         except TypeError:
             raise ValueError(f"{name} must be a real floating array, got dtype {array.dtype}") from None
-    check_action(array, num_envs, action_dim, dtype, device, name)
-    return array.to(device=device, dtype=dtype).clamp(-1.0, 1.0)
+    if tuple(tensor.shape) != (num_envs, action_dim):
+        raise ValueError(f"{name} must have shape [{num_envs}, {action_dim}], got {list(tensor.shape)}")
+    return tensor
+
+
+def as_action(action: object, num_envs: int, action_dim: int, dtype: torch.dtype, device: torch.device,
+              name: str = "action") -> torch.Tensor:
+    """[N, A] ``dtype`` tensor on ``device`` from an array-like ``action`` [N, A] (the action contract,
+    :func:`action_tensor`'s refusals). Infinities are clamped to [-1, 1]; a NaN is passed on for the
+    env to flag (it terminates that env)."""
+    return action_tensor(action, num_envs, action_dim, name).to(device=device, dtype=dtype).clamp(-1.0, 1.0)
 
 
 def reseed(env: EnvBase, seed: int) -> None:
     """Seed ``env`` with ``seed``: the env's and the simulator's streams, and the robustness transforms
     over it, which derive their own streams from the base env's seed record (as ``make_env(seed=)``)."""
     env.set_seed(int(seed))
+
+
+def first_row(arrays: dict[str, np.ndarray]) -> dict[str, Any]:
+    """The single env's info of entry arrays [1] or [1, ...]: a Python number per scalar entry, the
+    row [...] of a wider one."""
+    return {key: array[0].item() if array.ndim == 1 else array[0] for key, array in arrays.items()}
 
 
 def task_arrays(data: TensorDictBase) -> dict[str, np.ndarray]:
@@ -133,21 +151,26 @@ def default_max_episode_steps(task: str) -> int:
 
 
 class CoreAircraftEnv(gymnasium.Env):
-    """A single-aircraft :class:`FixedWingEnv` behind the Gymnasium API (float32 Box spaces [D], [A])."""
+    """A single-aircraft :class:`FixedWingEnv` behind the Gymnasium API (float32 Box spaces [D], [A]).
+
+    ``fast_path`` (the default) steps an env with no TorchRL transform over it through its tensor core
+    (:class:`~falcon_rl.envs.gym_core.TensorCore`: no TensorDicts, one host copy per step); False, or
+    any robustness option (a ``TransformedEnv``), steps through TorchRL's ``step``. Both give the same
+    numbers (tests/test_gym.py steps both side by side)."""
 
     metadata: dict[str, Any] = {"render_modes": []}  # noqa: RUF012 (gymnasium's class attribute)
 
     def __init__(self, task: str = "altitude", airframe: str = "navion", backend: str = DEFAULT_BACKEND,
-                 device: str = "cpu", seed: int | None = None, **options: Any):
+                 device: str = "cpu", seed: int | None = None, fast_path: bool = True, **options: Any):
+        from .gym_core import TensorCore, tensor_core_env
+
         self.env, self.build_seed = build_env(task, airframe, 1, backend, device, seed, options)
         self.observation_space, self.action_space = single_spaces(self.env)
         self._action_dtype = self.env.action_spec.dtype
         self._action_dim = int(self.action_space.shape[0])
-
-    @staticmethod
-    def _info(data: TensorDictBase) -> dict[str, Any]:
-        return {key: array[0].item() if array.ndim == 1 else array[0]
-                for key, array in task_arrays(data).items()}
+        core = tensor_core_env(self.env) if fast_path else None
+        #: The tensor core stepping the env, or None (TorchRL's step).
+        self.core: TensorCore | None = None if core is None else TensorCore(core)
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
               ) -> tuple[np.ndarray, dict[str, Any]]:
@@ -158,20 +181,27 @@ class CoreAircraftEnv(gymnasium.Env):
         super().reset(seed=seed)
         if seed is not None:
             reseed(self.env, seed)
+        if self.core is not None:
+            observation, arrays = self.core.reset()
+            return observation[0], first_row(arrays)
         data = self.env.reset()
-        return data["observation"][0].detach().cpu().numpy().astype(np.float32), self._info(data)
+        return data["observation"][0].detach().cpu().numpy().astype(np.float32), first_row(task_arrays(data))
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """One control period with ``action`` [A] (refused with ValueError unless [A] real float)."""
         shape = np.shape(action)
         if shape != (self._action_dim,):
             raise ValueError(f"action must have shape [{self._action_dim}], got {list(shape)}")
+        if self.core is not None:
+            step = self.core.step(action_tensor(np.asarray(action)[None], 1, self._action_dim))
+            return (step.observation[0], step.reward[0].item(), bool(step.terminated[0]),
+                    bool(step.truncated[0]), first_row(step.info))
         action_t = as_action(np.asarray(action)[None], 1, self._action_dim, self._action_dtype,
                              self.env.device)
         data = self.env.step(TensorDict({"action": action_t}, batch_size=[1], device=self.env.device))["next"]
         obs = data["observation"][0].detach().cpu().numpy().astype(np.float32)
         return (obs, float(data["reward"][0, 0]), bool(data["terminated"][0, 0]),
-                bool(data["truncated"][0, 0]), self._info(data))
+                bool(data["truncated"][0, 0]), first_row(task_arrays(data)))
 
 
 def register_gym_envs() -> list[str]:

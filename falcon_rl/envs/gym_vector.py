@@ -19,48 +19,30 @@ Infos follow Gymnasium's vector convention: ``info[key]`` is an [N, ...] array o
 streams (env, simulator, robustness transforms): the same ``s`` gives the same episodes, and the
 sub-envs draw distinct values of those streams; ``seed=None`` continues them (fresh OS entropy at
 construction unless a ``seed`` is given). ``reset(options={"reset_mask": mask})`` resets only the
-rows of ``mask`` [N] bool. Keyword arguments are those of :func:`falcon_rl.envs.make_env`; the
-backend defaults to "warp"; ``max_episode_steps`` (passed by ``make_vec`` from the registered spec)
-truncates at the smaller of it and the env's own horizon, as ``gymnasium.make``'s TimeLimit does.
+rows of ``mask`` [N] bool (the other rows keep their observation; their info entries are masked
+out). Keyword arguments are those of :func:`falcon_rl.envs.make_env`; the backend defaults to
+"warp"; ``max_episode_steps`` (passed by ``make_vec`` from the registered spec) truncates at the
+smaller of it and the env's own horizon, as ``gymnasium.make``'s TimeLimit does.
+
+Speed: without robustness options the batch steps through the env's tensor core
+(:class:`~falcon_rl.envs.gym_core.TensorCore`: no TensorDicts, host arrays from one device-to-host
+copy per step); ``fast_path=False``, or any robustness option (a ``TransformedEnv``), steps through
+TorchRL's ``step_and_maybe_reset``, which runs the transforms. Both give the same numbers
+(tests/test_gym_vector.py steps them side by side).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import torch
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
-from tensordict import TensorDict, TensorDictBase
 
 from ..transforms import flight_env
-from .gym import DEFAULT_BACKEND, as_action, build_env, reseed, single_spaces, task_arrays
-
-
-@dataclass(frozen=True)
-class Transition:
-    """One step of the batch as host arrays (N envs, D observation entries), plus the env's data."""
-
-    #: [N, D] float32 after the autoreset: the next episode's first observation where ``done``.
-    observation: np.ndarray
-    #: [N, D] float32 before the autoreset (equal to ``observation`` where not ``done``).
-    final_observation: np.ndarray
-    #: [N] in the simulation's float dtype (float32 unless the env was built with float64).
-    reward: np.ndarray
-    #: [N] bool each.
-    terminated: np.ndarray
-    truncated: np.ndarray
-    #: The env's ("next") data of the step, batch [N], before the autoreset.
-    stepped: TensorDictBase
-    #: The data after the autoreset, batch [N] (the next step starts from it).
-    current: TensorDictBase
-
-    @property
-    def done(self) -> np.ndarray:
-        """[N] bool: terminated or truncated (the rows that were reset)."""
-        return self.terminated | self.truncated
+from .gym import DEFAULT_BACKEND, action_tensor, as_action, build_env, reseed, single_spaces, task_arrays
+from .gym_core import TensorCore, Transition, tensor_core_env
 
 
 class FalconVectorEnv(VectorEnv):
@@ -72,7 +54,7 @@ class FalconVectorEnv(VectorEnv):
 
     def __init__(self, num_envs: int = 1, task: str = "altitude", airframe: str = "navion",
                  backend: str = DEFAULT_BACKEND, device: str = "cpu", seed: int | None = None,
-                 max_episode_steps: int | None = None, **options: Any):
+                 max_episode_steps: int | None = None, fast_path: bool = True, **options: Any):
         if int(num_envs) < 1:
             raise ValueError(f"num_envs must be >= 1, got {num_envs}")
         self.num_envs = int(num_envs)
@@ -87,7 +69,11 @@ class FalconVectorEnv(VectorEnv):
         self.max_episode_steps: int = base.max_episode_steps
         self._obs_dim = int(self.single_observation_space.shape[0])
         self._action_dim = int(self.single_action_space.shape[0])
-        self._data: TensorDictBase | None = None
+        core = tensor_core_env(self.env) if fast_path else None
+        #: The tensor core stepping the batch, or None (TorchRL's ``step_and_maybe_reset``).
+        self.core: TensorCore | None = None if core is None else TensorCore(core)
+        self._data: Any = None  # the TorchRL path's current TensorDict
+        self._started = False
 
     # ------------------------------------------------------------------ Gymnasium API
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
@@ -105,36 +91,42 @@ class FalconVectorEnv(VectorEnv):
         super().reset(seed=None if seed is None else int(seed))
         if seed is not None:
             reseed(self.env, int(seed))
+        self._started = True
+        if self.core is not None:
+            observation, arrays = self.core.reset(rows)
+            return observation, self._info(arrays, rows)
         if rows is None:
             self._data = self.env.reset()
-        else:
-            request = TensorDict({"_reset": torch.as_tensor(rows, device=self.env.device).reshape(-1, 1)},
-                                 batch_size=[self.num_envs], device=self.env.device)
-            self._data = self.env.reset(request)
+        else:  # the rows not reset keep the current data (TorchRL's maybe_reset)
+            self._data.set("_reset", torch.as_tensor(rows, device=self.env.device).reshape(-1, 1))
+            self._data = self.env.reset(self._data, select_reset_only=True)
         observation = self._data["observation"].detach().cpu().numpy().astype(np.float32)
-        return observation, self._info(self._data, rows)
+        return observation, self._info(task_arrays(self._data), rows)
 
     def step(self, actions: np.ndarray
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """(obs [N, D] float32, reward [N] float64, terminated [N] bool, truncated [N] bool, info) for
         ``actions`` [N, A] (a real float array; anything else raises ValueError before any env moves)."""
         step = self.step_transition(actions)
-        info = self._info(step.current)
+        info = self._info(step.info)
         done = step.done
         if done.any():
             final_obs = np.full(self.num_envs, None, dtype=object)
             for row in np.flatnonzero(done):
                 final_obs[row] = step.final_observation[row].copy()
             info.update(final_obs=final_obs, _final_obs=done.copy(),
-                        final_info=self._info(step.stepped, done), _final_info=done.copy())
+                        final_info=self._info(step.final_info, done), _final_info=done.copy())
         return (step.observation, step.reward.astype(np.float64), step.terminated, step.truncated, info)
 
-    def step_transition(self, actions: object) -> Transition:
-        """Step every env with ``actions`` [N, A] and autoreset the finished ones (SAME_STEP); the
-        arrays of the step in one device-to-host copy, and no info dictionaries."""
-        if self._data is None:
+    def step_transition(self, actions: object, infos: bool = True) -> Transition:
+        """Step every env with ``actions`` [N, A] and autoreset the finished ones (SAME_STEP): the arrays
+        of the step from one device-to-host copy; ``infos=False`` lets the TorchRL path skip the task
+        entries (``info`` and ``final_info`` are None then; the fast path always has them)."""
+        if not self._started:
             raise RuntimeError("call reset() before step()")
         n, d = self.num_envs, self._obs_dim
+        if self.core is not None:
+            return self.core.step(action_tensor(actions, n, self._action_dim, "actions"), autoreset=True)
         self._data["action"] = as_action(actions, n, self._action_dim, self.env.action_spec.dtype,
                                          self.env.device, "actions")
         stepped, self._data = self.env.step_and_maybe_reset(self._data)
@@ -146,24 +138,27 @@ class FalconVectorEnv(VectorEnv):
         return Transition(observation=packed[:, :d].astype(np.float32),
                           final_observation=packed[:, d:2 * d].astype(np.float32),
                           reward=packed[:, 2 * d].copy(), terminated=packed[:, 2 * d + 1] > 0.5,
-                          truncated=packed[:, 2 * d + 2] > 0.5, stepped=nxt, current=self._data)
+                          truncated=packed[:, 2 * d + 2] > 0.5,
+                          info=task_arrays(self._data) if infos else None,
+                          final_info=task_arrays(nxt) if infos else None)
 
     def close_extras(self, **kwargs: Any) -> None:
         """Close the TorchRL env."""
         self.env.close()
 
     # ------------------------------------------------------------------ internals
-    def _info(self, data: TensorDictBase, rows: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    def _info(self, arrays: dict[str, np.ndarray] | None, rows: np.ndarray | None = None
+              ) -> dict[str, np.ndarray]:
         """{key: [N, ...] task entry, "_" + key: [N] bool mask (``rows``, or all)}."""
         mask = np.ones(self.num_envs, dtype=bool) if rows is None else np.asarray(rows, dtype=bool)
         info: dict[str, np.ndarray] = {}
-        for key, value in task_arrays(data).items():
+        for key, value in (arrays or {}).items():
             info[key], info[f"_{key}"] = value, mask.copy()
         return info
 
     def _reset_rows(self, mask: object) -> np.ndarray:
         """[N] bool rows of a ``reset_mask`` option (ValueError unless an [N] bool array with a True)."""
-        if self._data is None:
+        if not self._started:
             raise RuntimeError("a partial reset (options['reset_mask']) needs a full reset() first")
         rows = np.asarray(mask)
         if rows.dtype != np.bool_ or rows.shape != (self.num_envs,) or not rows.any():

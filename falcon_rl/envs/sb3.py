@@ -33,7 +33,7 @@ try:
 except ImportError as exc:
     raise ImportError("falcon_rl.envs.sb3 needs stable-baselines3: pip install stable-baselines3") from exc
 
-from .gym import fresh_seed, task_arrays
+from .gym import fresh_seed
 from .gym_vector import FalconVectorEnv
 
 
@@ -79,16 +79,17 @@ class FalconSB3VecEnv(VecEnv):
         if self._actions is None:
             raise RuntimeError("step_wait() needs step_async(actions) first")
         actions, self._actions = self._actions, None
-        step = self.venv.step_transition(actions)
+        step = self.venv.step_transition(actions, infos=bool(self.info_keys))
         done = step.done
         time_limit = (step.truncated & ~step.terminated).tolist()
         infos: list[dict[str, Any]] = [{"TimeLimit.truncated": flag} for flag in time_limit]
-        if self.info_keys:
-            self._copy_keys(infos, task_arrays(step.stepped))
-        for row in np.flatnonzero(done):
+        if step.final_info is not None:
+            self._copy_keys(infos, step.final_info)
+        rows = np.flatnonzero(done)
+        for row in rows:
             infos[row]["terminal_observation"] = step.final_observation[row].copy()
-        if done.any():
-            self._record_reset_infos(step.current, done)
+        if len(rows):
+            self._record_reset_infos(step.info, rows)
         return step.observation, step.reward.astype(np.float32), done, infos
 
     def close(self) -> None:
@@ -145,16 +146,18 @@ class FalconSB3VecEnv(VecEnv):
             for info, value in zip(infos, rows, strict=True):
                 info[key] = value
 
-    def _record_reset_infos(self, data: Any, done: np.ndarray) -> None:
-        """``reset_infos`` of the envs reset this step (their ``info_keys`` entries after the reset)."""
-        if not self.info_keys:
-            for row in np.flatnonzero(done):
-                self.reset_infos[row] = {}
-            return
-        fresh = [{} for _ in range(self.num_envs)]
-        self._copy_keys(fresh, task_arrays(data))
-        for row in np.flatnonzero(done):
-            self.reset_infos[row] = fresh[row]
+    def _record_reset_infos(self, arrays: dict[str, np.ndarray] | None, rows: np.ndarray) -> None:
+        """``reset_infos`` of the envs ``rows`` reset this step (their ``info_keys`` entries after the
+        reset; ``arrays`` is the step's info after the autoreset, None without info_keys)."""
+        for row in rows:
+            entries = {} if arrays is None else {key: _entry(arrays[key], row) for key in self.info_keys}
+            self.reset_infos[row] = entries
+
+
+def _entry(values: np.ndarray, row: int) -> Any:
+    """Row ``row`` of an entry array as ``_copy_keys`` gives it: a Python number of an [N] array, the
+    row array of an [N, k] one."""
+    return values[row].item() if values.ndim == 1 else values[row]
 
 
 __all__ = ["FalconSB3VecEnv"]

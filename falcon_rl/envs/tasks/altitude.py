@@ -56,7 +56,7 @@ from .base import Task, TaskConfig, gaussian, normalised_surfaces, taper
 from .registry import TRAINING_DECIMATION, TRIM_HOLD, Metric, TaskSpec, register_task
 
 if TYPE_CHECKING:
-    from .altitude_warp import FusedAltitudeStep
+    from .warp_common import FusedStep
 
 
 @dataclass
@@ -118,7 +118,7 @@ class AltitudeTask(Task):
         self.reference_rate = torch.zeros(n, **kw)
         self.altitude_error = torch.zeros(n, **kw)  # h - h*
         self.reference_error = torch.zeros(n, **kw)  # h - h_ref
-        self._fused: FusedAltitudeStep | None = None  # bound on the first fused step
+        self._fused: FusedStep | None = None  # bound on the first fused step
 
     # ------------------------------------------------------------------ episode start
     def sample_targets_and_offsets(self) -> tuple[torch.Tensor, torch.Tensor]:

@@ -41,7 +41,7 @@ from .warp_common import (
 )
 
 if TYPE_CHECKING:
-    from .altitude import AltitudeTask
+    from .base import Task
 
 
 @wp.struct
@@ -204,7 +204,7 @@ def altitude_step_kernel(sim: SimulatorViews, buf: AltitudeBuffers, c: AltitudeC
     flush_denormals_end(saved)
 
 
-def altitude_constants(task: AltitudeTask) -> Any:
+def altitude_constants(task: Task) -> Any:
     """:class:`AltitudeConstants` of ``task``'s config and airframe (scalars as the torch step forms
     them: Python products first, then float32)."""
     cfg = task.config
@@ -228,9 +228,9 @@ class FusedAltitudeStep(FusedStep):
     reward [N], reason [N] long, and the random target shift [N] long drawn before each launch."""
 
     kernel = altitude_step_kernel
-    task: AltitudeTask
+    task: Task
 
-    def __init__(self, task: AltitudeTask):
+    def __init__(self, task: Task):
         super().__init__(task)
         self.shift = torch.zeros(task.num_envs, device=task.device, dtype=torch.long)
         self.shift_high = max(len(task.target_table), 2)

@@ -46,7 +46,7 @@ from .base import Task, TaskConfig, airspeed_margin_penalty, gaussian
 from .registry import TRIM_HOLD, Metric, TaskSpec, register_task
 
 if TYPE_CHECKING:
-    from .attitude_warp import FusedAttitudeStep
+    from .warp_common import FusedStep
 
 
 @dataclass
@@ -96,7 +96,7 @@ class AttitudeTask(Task):
         self.errors = torch.zeros(n, 3, **kw)  # (e_phi, e_hdot, e_Va)
         self.error_scale = torch.tensor(
             [30.0 * DEG, self.climb_scale, config.airspeed_scale * env.cruise_speed], **kw)
-        self._fused: FusedAttitudeStep | None = None  # bound on the first fused step
+        self._fused: FusedStep | None = None  # bound on the first fused step
 
     @property
     def episode_seconds(self) -> float:

@@ -32,7 +32,7 @@ from .warp_common import (
 )
 
 if TYPE_CHECKING:
-    from .attitude import AttitudeTask
+    from .base import Task
 
 
 @wp.struct
@@ -156,7 +156,7 @@ def attitude_step_kernel(sim: SimulatorViews, buf: AttitudeBuffers, c: AttitudeC
     flush_denormals_end(saved)
 
 
-def attitude_constants(task: AttitudeTask) -> Any:
+def attitude_constants(task: Task) -> Any:
     """:class:`AttitudeConstants` of ``task``'s config, stream and airframe."""
     cfg = task.config
     env = task.airframe.envelope
@@ -192,9 +192,9 @@ class FusedAttitudeStep(FusedStep):
     reward [N], reason [N] long, and the random stream's uniforms [N, 4] drawn before each launch."""
 
     kernel = attitude_step_kernel
-    task: AttitudeTask
+    task: Task
 
-    def __init__(self, task: AttitudeTask):
+    def __init__(self, task: Task):
         super().__init__(task)
         n, kw = task.num_envs, {"device": task.device, "dtype": torch.float32}
         self.draws = torch.zeros(n if task.random_stream is not None else 1, 4, **kw)

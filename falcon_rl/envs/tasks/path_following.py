@@ -41,7 +41,7 @@ from .base import Task, TaskConfig, airspeed_margin_penalty, gaussian, wrap_angl
 from .registry import TRIM_HOLD, Metric, TaskSpec, register_task
 
 if TYPE_CHECKING:
-    from .path_following_warp import FusedPathFollowingStep
+    from .warp_common import FusedStep
 
 
 @dataclass
@@ -83,7 +83,7 @@ class PathFollowingTask(Task):
         self.path_course = torch.zeros(n, **kw)
         self.errors = torch.zeros(n, 3, **kw)  # (e_y, chi_err, e_h)
         self.safe_airspeed = config.safe_airspeed_factor * self.airframe.envelope.stall_speed
-        self._fused: FusedPathFollowingStep | None = None  # bound on the first fused step
+        self._fused: FusedStep | None = None  # bound on the first fused step
 
     def sample_initial(self, mask: torch.Tensor) -> dict[str, torch.Tensor]:
         cfg = self.config

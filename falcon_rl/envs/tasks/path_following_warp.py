@@ -29,7 +29,7 @@ from .warp_common import (
 )
 
 if TYPE_CHECKING:
-    from .path_following import PathFollowingTask
+    from .base import Task
 
 
 @wp.struct
@@ -124,9 +124,9 @@ class FusedPathFollowingStep(FusedStep):
     observation [N, 17], reward [N], reason [N] long."""
 
     kernel = path_following_step_kernel
-    task: PathFollowingTask
+    task: Task
 
-    def __init__(self, task: PathFollowingTask):
+    def __init__(self, task: Task):
         super().__init__(task)
         self.bind()
 

@@ -43,7 +43,7 @@ from .base import Task, TaskConfig, airspeed_margin_penalty, gaussian
 from .registry import TRIM_HOLD, Metric, TaskSpec, register_task
 
 if TYPE_CHECKING:
-    from .trajectory_warp import FusedTrajectoryStep
+    from .warp_common import FusedStep
 
 
 @dataclass
@@ -94,7 +94,7 @@ class TrajectoryTask(Task):
         self.velocity_error = torch.zeros(n, 3, **kw)  # heading frame
         self.position_error_ned = torch.zeros(n, 3, **kw)
         self.safe_airspeed = config.safe_airspeed_factor * self.airframe.envelope.stall_speed
-        self._fused: FusedTrajectoryStep | None = None  # bound on the first fused step
+        self._fused: FusedStep | None = None  # bound on the first fused step
 
     def sample_initial(self, mask: torch.Tensor) -> dict[str, torch.Tensor]:
         cfg = self.config

@@ -28,7 +28,7 @@ from .warp_common import (
 )
 
 if TYPE_CHECKING:
-    from .trajectory import TrajectoryTask
+    from .base import Task
 
 
 @wp.struct
@@ -139,9 +139,9 @@ class FusedTrajectoryStep(FusedStep):
     [N, 17], reward [N], reason [N] long."""
 
     kernel = trajectory_step_kernel
-    task: TrajectoryTask
+    task: Task
 
-    def __init__(self, task: TrajectoryTask):
+    def __init__(self, task: Task):
         super().__init__(task)
         self.bind()
 
