@@ -36,15 +36,20 @@ def emit(args: argparse.Namespace, document: Any, text: str) -> None:
         print(text)
 
 
+def _shown(text: str, limit: int = 40) -> str:
+    """``text`` quoted for a message, cut to ``limit`` characters (a 400-digit value stays one line)."""
+    return repr(text) if len(text) <= limit else f"{text[:limit]!r}... ({len(text)} characters)"
+
+
 def _number(text: str, kind: type, what: str) -> float | int:
     try:
         value = kind(text)
     except (ValueError, OverflowError):
-        raise argparse.ArgumentTypeError(f"{text!r} is not {what}") from None
+        raise argparse.ArgumentTypeError(f"{_shown(text)} is not {what}") from None
     if kind is float and not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f"{text!r} is not a finite number")
+        raise argparse.ArgumentTypeError(f"{_shown(text)} is not a finite number")
     if kind is int and abs(value) > MAX_COUNT:
-        raise argparse.ArgumentTypeError(f"{text!r} is out of range (at most {MAX_COUNT})")
+        raise argparse.ArgumentTypeError(f"{_shown(text)} is out of range (at most {MAX_COUNT})")
     return value
 
 
