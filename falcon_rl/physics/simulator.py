@@ -128,6 +128,8 @@ class Simulator:
         self.stop_at_ground = bool(stop_at_ground)
         #: [N] bool: envs stopped at the ground since their last reset (see ``stop_at_ground``).
         self.crashed = torch.zeros(num_envs, dtype=torch.bool, device=device)
+        #: [N, S] the state before the current step (crash state; preallocated, no copy allocated per step)
+        self._before = torch.empty_like(self.engine.x)
         self._default: torch.Tensor | None = None
         self._default_command: torch.Tensor | None = None
         self.reset()
@@ -359,19 +361,20 @@ class Simulator:
             if not (isinstance(substeps, int) and substeps >= 1):
                 raise ValueError(f"substeps must be an int >= 1, got {substeps!r}")
         if self.stop_at_ground:
-            before = self.engine.x.clone()
+            self._before.copy_(self.engine.x)
             self.engine.step(commands, substeps)
-            self._stop_at_ground(before)
+            self._stop_at_ground(self._before)
         else:
             self.engine.step(commands, substeps)
 
     def _stop_at_ground(self, before: torch.Tensor) -> None:
         """Crash state: envs already crashed keep ``before`` [N, S] (they stay where they stopped);
         envs whose CG went below the ground this step stop on it (height 0, zero velocity and body
-        rates, attitude and actuators as integrated) and are flagged in ``crashed``. No host sync."""
+        rates, attitude and actuators as integrated) and are flagged in ``crashed``. No host sync, no
+        [N, S] allocation (``before`` is overwritten)."""
         x = self.engine.x
         below = S.height(x) < 0.0
-        x.copy_(torch.where(self.crashed[:, None], before, x))
+        x.copy_(torch.where(self.crashed[:, None], before, x, out=before))
         x[:, S.DOWN_INDEX].masked_fill_(below, 0.0)
         x[:, S.VELOCITY.start:S.ANGULAR_RATE.stop].masked_fill_(below[:, None], 0.0)
         self.crashed |= below
