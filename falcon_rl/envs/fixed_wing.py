@@ -35,7 +35,6 @@ command; the state is read once per env step.
 
 from __future__ import annotations
 
-import secrets
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any, NamedTuple
@@ -47,7 +46,7 @@ from torchrl.envs import EnvBase
 
 from ..airframe import Airframe, load_airframe
 from ..physics import Simulator
-from ..physics.engine import make_generator
+from ..physics.engine import fresh_seed, make_generator
 from ..physics.params import RANDOMIZABLE_PARAMETERS
 from ..physics.switches import ModelSwitches
 from ..physics.wind import TurbulenceConfig
@@ -182,7 +181,7 @@ class FixedWingEnv(EnvBase):
         if not (isinstance(decimation, int) and decimation >= 1):
             raise ValueError(f"decimation must be an int >= 1, got {decimation!r}")
         if config.seed is None:
-            config = replace(config, seed=secrets.randbits(62))  # fresh entropy, recorded in the config
+            config = replace(config, seed=fresh_seed())  # fresh entropy, recorded in the config
         config = replace(config, decimation=decimation)
         device = torch.device(config.device)
         super().__init__(batch_size=torch.Size([config.num_envs]), device=device)
@@ -243,7 +242,7 @@ class FixedWingEnv(EnvBase):
     # ------------------------------------------------------------------ EnvBase API
     def _set_seed(self, seed: int | None) -> None:
         if seed is None:
-            seed = secrets.randbits(62)  # fresh entropy, never a shared default
+            seed = fresh_seed()  # fresh entropy, never a shared default
         seed = int(seed) % (2**62)
         self.generator.manual_seed(seed)
         self.sim.reseed(seed + 1)

@@ -35,7 +35,6 @@ through TorchRL's step, which runs the transforms; both give the same numbers.
 
 from __future__ import annotations
 
-import secrets
 from typing import Any
 
 import gymnasium
@@ -45,6 +44,8 @@ from gymnasium import spaces
 from tensordict import TensorDict, TensorDictBase
 from torchrl.envs import EnvBase
 
+from ..physics.engine import fresh_seed
+from ..transforms.action_check import refuse_bad_action
 from .tasks.registry import TASK_SPECS, SpecView, task_spec
 
 #: Task name -> Gymnasium id (a live, read-only view of the task registry).
@@ -56,11 +57,6 @@ DEFAULT_BACKEND: str = "warp"
 #: Entry points registered for every task.
 ENTRY_POINT: str = "falcon_rl.envs.gym:CoreAircraftEnv"
 VECTOR_ENTRY_POINT: str = "falcon_rl.envs.gym_vector:FalconVectorEnv"
-
-
-def fresh_seed() -> int:
-    """A seed in [0, 2**62) from fresh OS entropy (what ``seed=None`` means at construction)."""
-    return secrets.randbits(62)
 
 
 def build_env(task: str, airframe: str, num_envs: int, backend: str, device: str, seed: int | None,
@@ -87,8 +83,6 @@ def action_tensor(action: object, num_envs: int, action_dim: int, name: str = "a
     copy; not yet cast, clamped or moved), or a one-line ValueError: not a numeric array, a bool,
     integer or complex dtype, or a shape other than [N, A] (the action contract's refusals)."""
     if isinstance(action, torch.Tensor):
-        if action.dtype == torch.bool or action.is_complex() or not action.is_floating_point():
-            raise ValueError(f"{name} must be a real floating tensor, got dtype {action.dtype}")
         tensor = action
     else:
         array = np.asarray(action)
@@ -101,8 +95,7 @@ def action_tensor(action: object, num_envs: int, action_dim: int, name: str = "a
             tensor = torch.from_numpy(array)
         except TypeError:
             raise ValueError(f"{name} must be a real floating array, got dtype {array.dtype}") from None
-    if tuple(tensor.shape) != (num_envs, action_dim):
-        raise ValueError(f"{name} must have shape [{num_envs}, {action_dim}], got {list(tensor.shape)}")
+    refuse_bad_action(tensor, num_envs, action_dim, name)
     return tensor
 
 

@@ -33,7 +33,7 @@ try:
 except ImportError as exc:
     raise ImportError("falcon_rl.envs.sb3 needs stable-baselines3: pip install stable-baselines3") from exc
 
-from .gym import fresh_seed
+from ..physics.engine import fresh_seed
 from .gym_vector import FalconVectorEnv
 
 

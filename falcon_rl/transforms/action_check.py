@@ -20,13 +20,9 @@ from __future__ import annotations
 import torch
 
 
-def check_action(action: object, num_envs: int, action_dim: int, dtype: torch.dtype,
-                 device: torch.device | str | None = None, name: str = "action"
-                 ) -> tuple[torch.Tensor, torch.Tensor]:
-    """(clean [N, A] in ``dtype`` within [-1, 1], non_finite [N] bool) from ``action``.
-
-    ``action`` must be an [N, A] real floating tensor (anything else raises ValueError, one line).
-    """
+def refuse_bad_action(action: object, num_envs: int, action_dim: int, name: str = "action") -> None:
+    """ValueError (one line) unless ``action`` is an [N, A] real floating tensor: the contract's
+    refusals, without touching the values (no tensor operation runs)."""
     if action is None:
         raise ValueError(f"missing {name!r} entry: the step needs an [{num_envs}, {action_dim}] float action")
     if not isinstance(action, torch.Tensor):
@@ -36,6 +32,18 @@ def check_action(action: object, num_envs: int, action_dim: int, dtype: torch.dt
         raise ValueError(f"{name} must be a real floating tensor, got dtype {action.dtype}")
     if tuple(action.shape) != (num_envs, action_dim):
         raise ValueError(f"{name} must have shape [{num_envs}, {action_dim}], got {list(action.shape)}")
+
+
+def check_action(action: object, num_envs: int, action_dim: int, dtype: torch.dtype,
+                 device: torch.device | str | None = None, name: str = "action"
+                 ) -> tuple[torch.Tensor, torch.Tensor]:
+    """(clean [N, A] in ``dtype`` within [-1, 1], non_finite [N] bool) from ``action``.
+
+    ``action`` must be an [N, A] real floating tensor (anything else raises ValueError, one line,
+    see :func:`refuse_bad_action`).
+    """
+    refuse_bad_action(action, num_envs, action_dim, name)
+    assert isinstance(action, torch.Tensor)
     action = action.to(device=device if device is not None else action.device, dtype=dtype)
     nan = torch.isnan(action)
     non_finite = nan.any(-1)
@@ -43,4 +51,4 @@ def check_action(action: object, num_envs: int, action_dim: int, dtype: torch.dt
     return clean, non_finite
 
 
-__all__ = ["check_action"]
+__all__ = ["check_action", "refuse_bad_action"]
