@@ -172,6 +172,18 @@ def bounded_int(low: int, high: int) -> Callable[[str], int]:
 episode_seconds = bounded_float(0.0, MAX_EPISODE_SECONDS, "s")
 
 
+def add_flight_arguments(parser: argparse.ArgumentParser, seconds_help: str, out_default: str,
+                         out_help: str) -> None:
+    """The options every command that flies a protocol takes: --seed, --backend, --device, --seconds
+    (episode length) and --out."""
+    parser.add_argument("--seed", type=nonnegative_int, default=0)
+    parser.add_argument("--backend", choices=["torch", "warp"], default="warp",
+                        help="simulator (default warp)")
+    parser.add_argument("--device", default="cpu", help="cpu or cuda[:N] (default cpu)")
+    parser.add_argument("--seconds", type=episode_seconds, default=None, help=seconds_help)
+    parser.add_argument("--out", default=out_default, help=out_help)
+
+
 def comma_list(text: str, flag: str, choices: tuple[str, ...] | None = None) -> list[str]:
     """The non-empty items of a comma list, each one of ``choices`` when given, else UsageError."""
     items = [item.strip() for item in text.split(",") if item.strip()]
@@ -239,7 +251,29 @@ def one_line(message: object) -> str:
     return printable(text)
 
 
-__all__ = ["MAX_AIRSPEED", "MAX_COUNT", "MAX_EPISODE_SECONDS", "MAX_HEIGHT", "UsageError", "bounded_float",
-           "bounded_int", "check_controller", "check_device", "check_policy", "comma_list", "emit",
-           "episode_seconds", "finite_float", "inside", "nonnegative_float", "nonnegative_int", "one_line",
-           "output_dir", "output_file", "positive_float", "positive_int", "printable"]
+__all__ = [
+    "MAX_AIRSPEED",
+    "MAX_COUNT",
+    "MAX_EPISODE_SECONDS",
+    "MAX_HEIGHT",
+    "UsageError",
+    "add_flight_arguments",
+    "bounded_float",
+    "bounded_int",
+    "check_controller",
+    "check_device",
+    "check_policy",
+    "comma_list",
+    "emit",
+    "episode_seconds",
+    "finite_float",
+    "inside",
+    "nonnegative_float",
+    "nonnegative_int",
+    "one_line",
+    "output_dir",
+    "output_file",
+    "positive_float",
+    "positive_int",
+    "printable",
+]

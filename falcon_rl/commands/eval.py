@@ -16,13 +16,12 @@ from pathlib import Path
 
 from ._common import (
     UsageError,
+    add_flight_arguments,
     check_controller,
     check_device,
     comma_list,
     emit,
-    episode_seconds,
     inside,
-    nonnegative_int,
     output_dir,
     positive_int,
 )
@@ -51,13 +50,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--episodes", type=positive_int, default=20, help="episodes (attitude: per maneuver)")
     parser.add_argument("--maneuvers", default=None,
                         help=f"comma list of {','.join(MANEUVERS)} (protocols that fly maneuvers: attitude)")
-    parser.add_argument("--seed", type=nonnegative_int, default=0)
-    parser.add_argument("--backend", choices=["torch", "warp"], default="warp",
-                        help="simulator (default warp)")
-    parser.add_argument("--device", default="cpu", help="cpu or cuda[:N] (default cpu)")
-    parser.add_argument("--seconds", type=episode_seconds, default=None,
-                        help="episode length, s (default: the protocol's; attitude: cuts each maneuver)")
-    parser.add_argument("--out", default="runs/eval", help="folder for report.md, results.json, PNGs")
+    add_flight_arguments(parser, "episode length, s (default: the protocol's; attitude: cuts each maneuver)",
+                         "runs/eval", "folder for report.md, results.json, PNGs")
 
 
 def _protocol_options(args: argparse.Namespace, protocol) -> dict:

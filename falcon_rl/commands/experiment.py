@@ -17,12 +17,11 @@ import json
 from pathlib import Path
 
 from ._common import (
+    add_flight_arguments,
     check_controller,
     check_device,
     comma_list,
     emit,
-    episode_seconds,
-    nonnegative_int,
     output_dir,
     positive_int,
 )
@@ -40,13 +39,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="comma list: the tasks' baselines (lqr, mppi, trim), ppo, policy files")
     parser.add_argument("--episodes", type=positive_int, default=20,
                         help="episodes per arm (attitude: per maneuver)")
-    parser.add_argument("--seed", type=nonnegative_int, default=0)
-    parser.add_argument("--backend", choices=["torch", "warp"], default="warp",
-                        help="simulator (default warp)")
-    parser.add_argument("--device", default="cpu", help="cpu or cuda[:N] (default cpu)")
-    parser.add_argument("--seconds", type=episode_seconds, default=None,
-                        help="episode length, s (default: each protocol's own)")
-    parser.add_argument("--out", default="runs/ablation", help="output folder")
+    add_flight_arguments(parser, "episode length, s (default: each protocol's own)", "runs/ablation",
+                         "output folder")
 
 
 def _parse(args: argparse.Namespace) -> tuple[list[str], dict[str, str], str, Path]:
