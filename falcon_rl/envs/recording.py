@@ -1,0 +1,217 @@
+"""Flight recordings: the file that the recorders write and the plots, the 3D renderer, the Tacview
+exporter and the FlightGear streamer read.
+
+A recording holds ``T`` frames of ``E`` aircraft. Every field is a float32 (or bool / int64) array
+whose first two axes are [T, E]; scalars per aircraft are stored [T, E]. The file is a NumPy ``.npz``
+(no pickles) with one array per field, ``time`` [T] in seconds and ``meta``, a JSON document::
+
+    time                  [T]        s, simulated time of each frame (frame 0 = after reset)
+    position_ned          [T, E, 3]  m, CG position, north-east-down about the origin
+    quaternion            [T, E, 4]  body-to-NED unit quaternion (w, x, y, z)
+    euler                 [T, E, 3]  rad, aerospace ZYX roll, pitch, yaw
+    velocity_body         [T, E, 3]  m/s, inertial velocity in body FRD
+    velocity_ned          [T, E, 3]  m/s, inertial velocity in NED
+    angular_rate_body     [T, E, 3]  rad/s, p, q, r
+    airspeed, alpha, beta [T, E]     m/s, rad, rad (wind and gusts included)
+    height, wing_height   [T, E]     m, CG and wing quarter-chord height above ground
+    lowest_tip_height     [T, E]     m, the lower wing tip above ground
+    command               [T, E, 4]  normalised command [-1, 1] (elevator, aileron, rudder, throttle)
+    surface_position      [T, E, 3]  rad, achieved elevator, aileron, rudder deflections
+    throttle              [T, E, M]  achieved throttle per motor, [0, 1]
+    thrust                [T, E]     N, total thrust
+    aero_coefficients     [T, E, 6]  C_L, C_D, C_Y, C_l, C_m, C_n (ground effect included)
+    gust_velocity_body    [T, E, 3]  m/s, Dryden gust velocity (body)
+    gust_rate_body        [T, E, 3]  rad/s, Dryden gust rates (body)
+    crashed               [T, E]     bool, the CG went below the ground
+    ... and the engine's diagnostics when it has them (``physics.derived``): aero_force_body [T, E, 3]
+    (N), aero_moment_body [T, E, 3] (N m), motor_thrust [T, E, M] (N), ge_h_over_b, ge_lift_factor,
+    ge_drag_factor [T, E]; and, from an env, action [T, E, C], reward [T, E], done [T, E] (bool),
+    termination_reason [T, E] (int64, index into ``meta["termination_reasons"]``) and the task's
+    references under ``reference/<name>``.
+
+``meta`` carries at least ``format`` (:data:`RECORDING_FORMAT`), ``airframe`` (a name
+``falcon_rl.load_airframe`` accepts), ``dt`` (s between frames) and ``labels`` (one per aircraft), and
+where known ``task``, ``controller``, ``maneuver``, ``seed``, ``backend``, ``env_ids`` and
+``termination_reasons``. Any field but ``time``, ``position_ned`` and ``quaternion`` may be absent;
+readers skip what is missing.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+#: The ``meta["format"]`` of this version of the file.
+RECORDING_FORMAT = "falcon-rl-recording/1"
+#: Fields every recording has.
+REQUIRED_FIELDS: tuple[str, ...] = ("position_ned", "quaternion")
+#: Fields of ``Simulator.state`` that are not recorded (constant or bookkeeping).
+_SKIPPED_STATE_FIELDS = frozenset({"time", "surface_rate", "ground_contact"})
+
+
+class RecordingError(ValueError):
+    """A recording file or array that breaks the schema (the message names the file and field)."""
+
+
+@dataclass
+class Recording:
+    """``T`` frames of ``E`` aircraft: ``time`` [T] s and ``fields`` {name: [T, E, ...]}."""
+
+    time: np.ndarray
+    fields: dict[str, np.ndarray]
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.time = np.asarray(self.time, dtype=np.float64)
+        if self.time.ndim != 1:
+            raise RecordingError(f"time must be [T], got shape {self.time.shape}")
+        missing = [name for name in REQUIRED_FIELDS if name not in self.fields]
+        if missing:
+            raise RecordingError(f"a recording needs the fields {', '.join(missing)}")
+        frames, envs = self.num_frames, self.fields["position_ned"].shape[1]
+        for name, value in self.fields.items():
+            if value.ndim < 2 or value.shape[:2] != (frames, envs):
+                raise RecordingError(
+                    f"field {name!r} has shape {value.shape}, expected [{frames}, {envs}, ...]")
+        if frames > 1 and not np.all(np.diff(self.time) > 0):
+            raise RecordingError("time must increase strictly from frame to frame")
+        self.meta = {"format": RECORDING_FORMAT, **self.meta}
+        self.meta.setdefault("labels", [f"aircraft {e}" for e in range(envs)])
+
+    @property
+    def num_frames(self) -> int:
+        """T."""
+        return int(self.time.shape[0])
+
+    @property
+    def num_envs(self) -> int:
+        """E, the number of aircraft."""
+        return int(self.fields["position_ned"].shape[1])
+
+    @property
+    def dt(self) -> float:
+        """Seconds between frames (``meta["dt"]``, else the median spacing of ``time``)."""
+        if "dt" in self.meta:
+            return float(self.meta["dt"])
+        return float(np.median(np.diff(self.time))) if self.num_frames > 1 else 0.0
+
+    def has(self, name: str) -> bool:
+        """Whether the field ``name`` was recorded."""
+        return name in self.fields
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self.fields[name]
+
+    def references(self) -> dict[str, np.ndarray]:
+        """The task references {name: [T, E, ...]} (fields ``reference/<name>``)."""
+        return {name.split("/", 1)[1]: value for name, value in self.fields.items()
+                if name.startswith("reference/")}
+
+    def select(self, envs: Iterable[int]) -> Recording:
+        """A recording of the aircraft ``envs`` only (indices into E)."""
+        index = list(envs)
+        labels = self.meta.get("labels", [])
+        meta = {**self.meta, "labels": [labels[e] for e in index] if labels else labels}
+        return Recording(self.time, {k: v[:, index] for k, v in self.fields.items()}, meta)
+
+    def save(self, path: str | Path) -> Path:
+        """Write ``path`` (.npz, compressed; the suffix is added when missing)."""
+        path = Path(path)
+        if path.suffix != ".npz":
+            path = path.with_name(path.name + ".npz")
+        path.parent.mkdir(parents=True, exist_ok=True)
+        arrays = {f"field/{name}": value for name, value in self.fields.items()}
+        meta = np.frombuffer(json.dumps(self.meta).encode(), dtype=np.uint8)
+        np.savez_compressed(path, time=self.time, meta=meta, **arrays)
+        return path
+
+    @classmethod
+    def load(cls, path: str | Path) -> Recording:
+        """Read a file :meth:`save` wrote; a foreign or damaged file raises :class:`RecordingError`
+        naming the file and what is wrong."""
+        path = Path(path)
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                names = set(data.files)
+                if "time" not in names or "meta" not in names:
+                    raise RecordingError(f"{path}: not a falcon-rl recording (no 'time' or 'meta' array)")
+                meta = json.loads(bytes(data["meta"]).decode())
+                time = data["time"]
+                fields = {name[len("field/"):]: data[name] for name in names if name.startswith("field/")}
+        except (OSError, ValueError, json.JSONDecodeError) as error:
+            if isinstance(error, RecordingError):
+                raise
+            raise RecordingError(f"{path}: cannot be read as a recording ({error})") from None
+        if not isinstance(meta, dict) or meta.get("format") != RECORDING_FORMAT:
+            found = meta.get("format") if isinstance(meta, dict) else None
+            raise RecordingError(f"{path}: meta.format is {found!r}, expected {RECORDING_FORMAT!r}")
+        try:
+            return cls(time, fields, meta)
+        except RecordingError as error:
+            raise RecordingError(f"{path}: {error}") from None
+
+
+def state_frame(state: Mapping[str, torch.Tensor], env_ids: torch.Tensor | list[int] | None = None,
+                num_motors: int | None = None) -> dict[str, np.ndarray]:
+    """One frame {name: [E, ...]} of the rows ``env_ids`` (all when None) of ``Simulator.state``."""
+    frame: dict[str, np.ndarray] = {}
+    for name, value in state.items():
+        if name in _SKIPPED_STATE_FIELDS or not isinstance(value, torch.Tensor):
+            continue
+        rows = value if env_ids is None else value[env_ids]
+        if name == "motor_thrust" and num_motors is not None:
+            rows = rows[:, :num_motors]
+        frame[name] = rows.detach().cpu().numpy().copy()
+    return frame
+
+
+class RecordingBuilder:
+    """Accumulates frames {name: [E, ...]} at times t and stacks them into a :class:`Recording`."""
+
+    def __init__(self, meta: Mapping[str, Any] | None = None) -> None:
+        self.meta: dict[str, Any] = dict(meta or {})
+        self.times: list[float] = []
+        self.frames: list[dict[str, np.ndarray]] = []
+
+    def __len__(self) -> int:
+        return len(self.frames)
+
+    def add(self, time: float, frame: Mapping[str, np.ndarray]) -> None:
+        """Append one frame; a field missing from a later frame is dropped from the recording."""
+        self.times.append(float(time))
+        self.frames.append(dict(frame))
+
+    def build(self) -> Recording:
+        """The recording of the frames so far (fields present in every frame)."""
+        if not self.frames:
+            raise RecordingError("nothing was recorded")
+        names = [n for n in self.frames[0] if all(n in f for f in self.frames)]
+        fields = {n: np.stack([np.asarray(f[n]) for f in self.frames]) for n in names}
+        for name, value in fields.items():
+            if value.ndim == 1:  # one scalar per frame -> [T, 1]
+                fields[name] = value[:, None]
+        return Recording(np.asarray(self.times), fields, self.meta)
+
+
+def record_simulator(simulator: Any, commands: torch.Tensor | Any, steps: int, substeps: int = 1,
+                     meta: Mapping[str, Any] | None = None) -> Recording:
+    """Fly ``simulator`` from its current state for ``steps`` frames of ``substeps`` physics steps and
+    record every aircraft. ``commands`` is a fixed [N, C] command, or a callable ``(state) -> [N, C]``.
+    A small helper for scripts and tests; envs are recorded by the recorder transform/wrapper."""
+    builder = RecordingBuilder({"airframe": simulator.airframe.name, "dt": simulator.dt * substeps,
+                                **dict(meta or {})})
+    motors = simulator.airframe.num_motors
+    state = simulator.state
+    builder.add(float(state["time"][0]), state_frame(state, num_motors=motors))
+    for _ in range(steps):
+        command = commands(state) if callable(commands) else commands
+        simulator.step(command, substeps=substeps)
+        state = simulator.state
+        builder.add(float(state["time"][0]), state_frame(state, num_motors=motors))
+    return builder.build()
