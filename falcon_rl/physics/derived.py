@@ -16,6 +16,16 @@ derived quantity is one row here plus the line that computes it in each backend
     lowest_tip_height [N]  m, the lower wing tip (quarter chord +-b/2) above ground
     velocity_ned [N, 3]    m/s, inertial velocity in NED
     euler [N, 3]           rad, aerospace ZYX roll, pitch, yaw
+
+and the diagnostics that the plots show (what the model computed, not a re-derivation):
+
+    aero_force_body [N, 3]  N, aerodynamic force in body FRD (propulsion and gravity excluded)
+    aero_moment_body [N, 3] N m, aerodynamic moment about the CG in body FRD
+    motor_thrust [N, 8]     N, thrust per motor, padded with zeros to ``MAX_MOTORS`` columns
+                            (``Simulator.state`` keeps the airframe's motors only)
+    ge_h_over_b [N]         wing quarter-chord height over span, the ground-effect argument
+    ge_lift_factor [N]      Phillips-Hunsaker lift influence ratio (-> 1 far from the ground; 1 when off)
+    ge_drag_factor [N]      Phillips-Hunsaker induced-drag influence ratio (likewise)
 """
 
 from __future__ import annotations
@@ -24,11 +34,18 @@ import itertools
 
 import torch
 
+from .state import WARP_MAX_MOTORS
+
+#: Columns of the per-motor thrust (the most motors an engine supports; unused ones read 0).
+MAX_MOTORS: int = WARP_MAX_MOTORS
+
 #: (name, width) of each derived field, in column order.
 DERIVED_FIELDS: tuple[tuple[str, int], ...] = (
     ("airspeed", 1), ("alpha", 1), ("beta", 1), ("height", 1), ("wing_height", 1),
     ("surface_position", 3), ("thrust", 1), ("aero_coefficients", 6), ("lowest_tip_height", 1),
     ("velocity_ned", 3), ("euler", 3),
+    ("aero_force_body", 3), ("aero_moment_body", 3), ("motor_thrust", MAX_MOTORS), ("ge_h_over_b", 1),
+    ("ge_lift_factor", 1), ("ge_drag_factor", 1),
 )
 #: First column of each derived field.
 DERIVED_OFFSET: dict[str, int] = dict(zip(

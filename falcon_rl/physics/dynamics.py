@@ -29,7 +29,7 @@ from .actuators import (
 )
 from .aero import aero_forces, aero_forces_wp
 from .atmosphere import model_density, model_density_wp
-from .derived import pack_derived
+from .derived import MAX_MOTORS, pack_derived
 from .params import ModelParams, Vec6, WarpParams
 from .propulsion import propulsion_forces, propulsion_forces_wp
 from .rotations import (
@@ -60,6 +60,7 @@ class Evaluation:
     force_body: torch.Tensor  # [N, 3] total non-gravity force
     moment_body: torch.Tensor  # [N, 3]
     aero_force_body: torch.Tensor  # [N, 3]
+    aero_moment_body: torch.Tensor  # [N, 3]
     thrust: torch.Tensor  # [N, M]
     coefficients: torch.Tensor  # [N, 6]
     induced_drag_coefficient: torch.Tensor  # [N]
@@ -113,6 +114,7 @@ def evaluate(x: torch.Tensor, p: ModelParams, air: AirInputs | None = None) -> E
         force_body=aero.force_body + f_prop,
         moment_body=aero.moment_body + m_prop,
         aero_force_body=aero.force_body,
+        aero_moment_body=aero.moment_body,
         thrust=thrust,
         coefficients=aero.coefficients,
         induced_drag_coefficient=aero.induced_drag_coefficient,
@@ -183,6 +185,10 @@ def derived_columns(x: torch.Tensor, p: ModelParams, air: AirInputs | None = Non
         "aero_coefficients": ev.coefficients, "lowest_tip_height": lowest_tip_height(ev, p),
         "velocity_ned": (ev.rotation * x[:, S.VELOCITY].unsqueeze(1)).sum(dim=-1),
         "euler": quaternion_to_euler(x[:, S.QUATERNION]),
+        "aero_force_body": ev.aero_force_body, "aero_moment_body": ev.aero_moment_body,
+        "motor_thrust": torch.nn.functional.pad(ev.thrust, (0, MAX_MOTORS - ev.thrust.shape[-1])),
+        "ge_h_over_b": ev.wing_height / p.span, "ge_lift_factor": ev.kappa_lift,
+        "ge_drag_factor": ev.kappa_drag,
     })
 
 
@@ -218,6 +224,13 @@ class EvaluationWp:
     moment_body: wp.vec3
     thrust: float
     coefficients: Vec6
+    # diagnostics (read by the evaluation kernel only)
+    aero_force_body: wp.vec3
+    aero_moment_body: wp.vec3
+    kappa_lift: float
+    kappa_drag: float
+    v_air_body: wp.vec3
+    density: float
 
 
 @warp_func
@@ -253,6 +266,12 @@ def evaluate_wp(x: StateVec, wind_ned: wp.vec3, gust_velocity_body: wp.vec3, gus
     ev.moment_body = aero.moment_body + prop.moment_body
     ev.thrust = prop.thrust
     ev.coefficients = aero.coefficients
+    ev.aero_force_body = aero.force_body
+    ev.aero_moment_body = aero.moment_body
+    ev.kappa_lift = aero.kappa_lift
+    ev.kappa_drag = aero.kappa_drag
+    ev.v_air_body = v_air
+    ev.density = density
     return ev
 
 

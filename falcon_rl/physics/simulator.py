@@ -386,9 +386,11 @@ class Simulator:
     @property
     def state(self) -> TensorDict:
         """Named fields of the current state (clones), batch [N]; the derived quantities (air data,
-        coefficients, thrust, contact, Euler angles) come from the engine (``derived.DERIVED_FIELDS``,
-        on warp one kernel launch)."""
+        coefficients, thrust, contact, Euler angles) and the diagnostics (aero force and moment, thrust
+        per motor [N, M], ground-effect h/b and factors) come from the engine
+        (``derived.DERIVED_FIELDS``, on warp one kernel launch)."""
         x = self.x.clone()  # one copy; the fields are views of it (and of one copy of the derived state)
+        derived = split_derived(self.engine.derived().clone(), copy=False)
         return TensorDict(
             {
                 "position_ned": x[:, S.POSITION],
@@ -402,7 +404,8 @@ class Simulator:
                 "gust_velocity_body": self.gust_velocity_body.clone(),
                 "gust_rate_body": self.gust_rate_body.clone(),
                 "crashed": self.crashed.clone(),
-                **split_derived(self.engine.derived().clone(), copy=False),
+                **derived,
+                "motor_thrust": derived["motor_thrust"][:, :self.airframe.num_motors],
             },
             batch_size=[self.num_envs],
             device=self.device,

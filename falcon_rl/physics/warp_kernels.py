@@ -15,11 +15,12 @@ from __future__ import annotations
 import warp as wp
 
 from .actuators import hold_ideal_wp
-from .derived import DERIVED_OFFSET
+from .derived import DERIVED_OFFSET, MAX_MOTORS
 from .dynamics import derivative_wp, evaluate_wp, project_wp
 from .params import WarpParams
+from .propulsion import motor_thrust_wp
 from .rotations import quaternion_to_euler_wp, rotation_matrix_wp
-from .state import QUATERNION_START, VELOCITY_START, StateVec
+from .state import QUATERNION_START, THROTTLE_START, VELOCITY_START, StateVec
 from .wind import NUM_FILTER_STATES, NUM_NOISE, Vec6, Vec8, dryden_step_wp
 
 # Denormal floats (|x| < 1.2e-38) take a slow microcode path on x86 CPUs. Trimmed, symmetric states
@@ -62,6 +63,9 @@ _HEIGHT, _WING_HEIGHT = DERIVED_OFFSET["height"], DERIVED_OFFSET["wing_height"]
 _SURFACES, _THRUST = DERIVED_OFFSET["surface_position"], DERIVED_OFFSET["thrust"]
 _COEFFICIENTS, _LOWEST_TIP = DERIVED_OFFSET["aero_coefficients"], DERIVED_OFFSET["lowest_tip_height"]
 _VELOCITY_NED, _EULER = DERIVED_OFFSET["velocity_ned"], DERIVED_OFFSET["euler"]
+_AERO_FORCE, _AERO_MOMENT = DERIVED_OFFSET["aero_force_body"], DERIVED_OFFSET["aero_moment_body"]
+_MOTOR_THRUST, _H_OVER_B = DERIVED_OFFSET["motor_thrust"], DERIVED_OFFSET["ge_h_over_b"]
+_GE_LIFT, _GE_DRAG = DERIVED_OFFSET["ge_lift_factor"], DERIVED_OFFSET["ge_drag_factor"]
 #: Turbulence modes of the step kernel: off, noise from the Warp streams, noise read from an array.
 TURBULENCE_OFF, TURBULENCE_RANDOM, TURBULENCE_EXTERNAL = 0, 1, 2
 
@@ -224,4 +228,15 @@ def evaluate_kernel(
         out[i, _EULER + k] = euler[k]
     for k in range(6):
         out[i, _COEFFICIENTS + k] = ev.coefficients[k]
+    for k in range(3):
+        out[i, _AERO_FORCE + k] = ev.aero_force_body[k]
+        out[i, _AERO_MOMENT + k] = ev.aero_moment_body[k]
+    for m in range(MAX_MOTORS):
+        thrust = float(0.0)  # noqa: UP018 (a mutable Warp local)
+        if m < p.num_motors:
+            thrust = motor_thrust_wp(ev.v_air_body, s[THROTTLE_START + m], ev.density, p, i, m)
+        out[i, _MOTOR_THRUST + m] = thrust
+    out[i, _H_OVER_B] = ev.wing_height / p.span[i]
+    out[i, _GE_LIFT] = ev.kappa_lift
+    out[i, _GE_DRAG] = ev.kappa_drag
     flush_denormals_end(saved)
