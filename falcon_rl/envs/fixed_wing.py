@@ -172,6 +172,9 @@ class FixedWingEnv(EnvBase):
     count outside [0, max_episode_steps). (``parameters`` is ``nn.Module``'s, hence the prefix.)
     """
 
+    #: Names of the ``termination_reason`` codes (index -> name), for readers of recordings and logs.
+    termination_reasons: tuple[str, ...] = TERMINATION_REASONS
+
     batch_locked = True
 
     def __init__(self, config: FixedWingEnvConfig | None = None, airframe: Airframe | None = None):

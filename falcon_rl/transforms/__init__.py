@@ -1,4 +1,5 @@
-"""TorchRL transforms for robustness studies: sensors, observation/action delay, domain randomisation.
+"""TorchRL transforms for robustness studies: sensors, observation/action delay, domain randomisation;
+and the flight recorder (:class:`FlightRecorder`, trajectories to a recording file for the viewers).
 
     env = make_env("attitude", "navion", num_envs=256, sensors="mild", obs_delay_ms=20,
                    action_delay_ms=(20, 60), randomize=True, turbulence="moderate")
@@ -34,6 +35,7 @@ if TYPE_CHECKING:
         sensor_preset,
     )
     from .randomize import DomainRandomization, RandomizationConfig
+    from .record import FlightRecorder
     from .sensors import SENSOR_FIELDS, SensorChannel, SensorConfig, SensorTransform
 
 #: Public name -> the submodule that defines it.
@@ -43,13 +45,14 @@ _LAZY = {
     **dict.fromkeys(("GRID", "delay_preset", "grid_turbulence", "resolve_turbulence", "robustness_transforms",
                      "sensor_preset"), "presets"),
     **dict.fromkeys(("DomainRandomization", "RandomizationConfig"), "randomize"),
+    "FlightRecorder": "record",
     **dict.fromkeys(("SENSOR_FIELDS", "SensorChannel", "SensorConfig", "SensorTransform"), "sensors"),
 }
 
 __all__ = ["FLIGHT_ENV_INTERFACE", "GRID", "SENSOR_FIELDS", "ActionDelay", "DomainRandomization", "FlightEnv",
-           "ObservationDelay", "RandomizationConfig", "SensorChannel", "SensorConfig", "SensorTransform",
-           "delay_preset", "flight_env", "grid_turbulence", "resolve_turbulence", "robustness_transforms",
-           "sensor_preset"]
+           "FlightRecorder", "ObservationDelay", "RandomizationConfig", "SensorChannel", "SensorConfig",
+           "SensorTransform", "delay_preset", "flight_env", "grid_turbulence", "resolve_turbulence",
+           "robustness_transforms", "sensor_preset"]
 
 
 __getattr__, __dir__ = lazy_exports(__name__, _LAZY, __all__)

@@ -26,8 +26,10 @@ whose first two axes are [T, E]; scalars per aircraft are stored [T, E]. The fil
     ... and the engine's diagnostics when it has them (``physics.derived``): aero_force_body [T, E, 3]
     (N), aero_moment_body [T, E, 3] (N m), motor_thrust [T, E, M] (N), ge_h_over_b, ge_lift_factor,
     ge_drag_factor [T, E]; and, from an env, action [T, E, C], reward [T, E], done [T, E] (bool),
-    termination_reason [T, E] (int64, index into ``meta["termination_reasons"]``) and the task's
-    references under ``reference/<name>``.
+    termination_reason [T, E] (int64, index into ``meta["termination_reasons"]``), the task's
+    references under ``reference/<name>`` (its ``reference_<name>`` and ``<name>_command`` entries,
+    e.g. reference/altitude, reference/bank), its other entries under
+    ``task/<name>``, and ``sim_time`` [T, E] (each aircraft's own clock, which restarts at a reset).
 
 ``meta`` carries at least ``format`` (:data:`RECORDING_FORMAT`), ``airframe`` (a name
 ``falcon_rl.load_airframe`` accepts), ``dt`` (s between frames) and ``labels`` (one per aircraft), and
@@ -183,20 +185,108 @@ class RecordingBuilder:
         return len(self.frames)
 
     def add(self, time: float, frame: Mapping[str, np.ndarray]) -> None:
-        """Append one frame; a field missing from a later frame is dropped from the recording."""
+        """Append one frame {name: [E, ...]} at ``time`` s."""
         self.times.append(float(time))
         self.frames.append(dict(frame))
 
     def build(self) -> Recording:
-        """The recording of the frames so far (fields present in every frame)."""
+        """The recording of the frames so far. A field missing from some frames (the action and reward
+        of the frame at a reset) is filled there with NaN (float), False (bool) or -1 (integer)."""
         if not self.frames:
             raise RecordingError("nothing was recorded")
-        names = [n for n in self.frames[0] if all(n in f for f in self.frames)]
-        fields = {n: np.stack([np.asarray(f[n]) for f in self.frames]) for n in names}
+        names = list(dict.fromkeys(n for f in self.frames for n in f))
+        fields = {n: np.stack(_filled(self.frames, n)) for n in names}
         for name, value in fields.items():
             if value.ndim == 1:  # one scalar per frame -> [T, 1]
                 fields[name] = value[:, None]
         return Recording(np.asarray(self.times), fields, self.meta)
+
+
+def _filled(frames: list[dict[str, np.ndarray]], name: str) -> list[np.ndarray]:
+    """Field ``name`` of every frame, a fill value where a frame lacks it."""
+    template = np.asarray(next(f[name] for f in frames if name in f))
+    if template.dtype == np.bool_:
+        fill: Any = False
+    elif np.issubdtype(template.dtype, np.integer):
+        fill = -1
+    else:
+        fill = np.nan
+    return [np.asarray(f[name]) if name in f else np.full_like(template, fill) for f in frames]
+
+
+class FlightLog:
+    """Records the aircraft ``env_ids`` of a flight env (anything with ``sim`` and ``control_dt``, and
+    optionally ``config`` and ``termination_reasons``, such as :class:`~falcon_rl.envs.FixedWingEnv`)
+    one frame per :meth:`capture`: the simulator's whole state with the engine's diagnostics, plus what
+    the caller adds (action, reward, done, task entries). The recorder transform and the Gymnasium
+    wrappers are built on it.
+
+    Frame k is at ``time`` = k x ``control_dt`` (a global clock that runs on across resets); each
+    aircraft's own simulated time is the field ``sim_time``. ``max_frames`` stops recording (never
+    drops the beginning) once reached.
+    """
+
+    def __init__(self, env: Any, env_ids: Iterable[int] = (0,), max_frames: int | None = None,
+                 meta: Mapping[str, Any] | None = None) -> None:
+        self.env = env
+        self.env_ids = [int(e) for e in env_ids]
+        num_envs = int(env.sim.num_envs)
+        if not self.env_ids or any(not 0 <= e < num_envs for e in self.env_ids):
+            raise ValueError(f"env_ids must be a non-empty list of indices in [0, {num_envs}), "
+                             f"got {self.env_ids}")
+        if max_frames is not None and max_frames < 1:
+            raise ValueError(f"max_frames must be at least 1, got {max_frames}")
+        self.max_frames = max_frames
+        config = getattr(env, "config", None)
+        self.builder = RecordingBuilder({
+            "airframe": env.sim.airframe.name, "dt": float(env.control_dt), "env_ids": self.env_ids,
+            "labels": [f"env {e}" for e in self.env_ids],
+            "task": getattr(config, "task", None), "backend": getattr(config, "backend", None),
+            "seed": getattr(env, "seed_record", (0, None))[1],
+            "termination_reasons": list(getattr(env, "termination_reasons", ())),
+            **dict(meta or {})})
+        self._rows = torch.tensor(self.env_ids, device=env.sim.device)
+
+    @property
+    def full(self) -> bool:
+        """Whether ``max_frames`` frames were recorded."""
+        return self.max_frames is not None and len(self.builder) >= self.max_frames
+
+    def capture(self, extras: Mapping[str, torch.Tensor | np.ndarray] | None = None) -> None:
+        """Append one frame: the simulator state of the recorded rows and ``extras`` {name: [N, ...]}
+        (rows of all N envs; the recorded ones are kept)."""
+        if self.full:
+            return
+        sim = self.env.sim
+        state = sim.state
+        frame = state_frame(state, self._rows, sim.airframe.num_motors)
+        frame["sim_time"] = state["time"][self._rows].cpu().numpy()
+        for name, value in (extras or {}).items():
+            rows = value[self._rows] if isinstance(value, torch.Tensor) else np.asarray(value)[self.env_ids]
+            rows = rows.detach().cpu().numpy() if isinstance(rows, torch.Tensor) else rows
+            frame[name] = rows[:, 0] if rows.ndim == 2 and rows.shape[1] == 1 else rows
+        self.builder.add(len(self.builder) * float(self.env.control_dt), frame)
+
+    def recording(self) -> Recording:
+        """What was recorded so far."""
+        return self.builder.build()
+
+
+def task_extras(task: Mapping[str, torch.Tensor] | None) -> dict[str, torch.Tensor]:
+    """The task's entries {name: [N, ...]} as recording fields: what the aircraft should follow now
+    (``reference_x`` and ``x_command`` entries, e.g. reference_altitude, bank_command) under
+    ``reference/x``, the others (targets, errors) under ``task/<name>``."""
+    out: dict[str, torch.Tensor] = {}
+    for name, value in ({} if task is None else task).items():
+        if name.startswith("reference_") and name != "reference_error":
+            out[f"reference/{name[len('reference_'):]}"] = value
+        elif name == "termination_reason":
+            out[name] = value
+        elif name.endswith("_command") and name != "stream_command":
+            out[f"reference/{name[:-len('_command')]}"] = value
+        else:
+            out[f"task/{name}"] = value
+    return out
 
 
 def record_simulator(simulator: Any, commands: torch.Tensor | Any, steps: int, substeps: int = 1,
