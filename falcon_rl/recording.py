@@ -41,6 +41,7 @@ readers skip what is missing.
 from __future__ import annotations
 
 import json
+import zipfile
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -138,6 +139,8 @@ class Recording:
         """Read a file :meth:`save` wrote; a foreign or damaged file raises :class:`RecordingError`
         naming the file and what is wrong."""
         path = Path(path)
+        if path.is_file() and not zipfile.is_zipfile(path):
+            raise RecordingError(f"{path}: not a recording (a recording is an .npz archive)")
         try:
             with np.load(path, allow_pickle=False) as data:
                 names = set(data.files)
@@ -149,7 +152,8 @@ class Recording:
         except (OSError, ValueError, json.JSONDecodeError) as error:
             if isinstance(error, RecordingError):
                 raise
-            raise RecordingError(f"{path}: cannot be read as a recording ({error})") from None
+            reason = getattr(error, "strerror", None) or error
+            raise RecordingError(f"{path}: cannot be read as a recording ({reason})") from None
         if not isinstance(meta, dict) or meta.get("format") != RECORDING_FORMAT:
             found = meta.get("format") if isinstance(meta, dict) else None
             raise RecordingError(f"{path}: meta.format is {found!r}, expected {RECORDING_FORMAT!r}")

@@ -38,7 +38,7 @@ def row(case_id: str, argv: str | list[str], needle: str):
 CLI_CASES = [
     # the top level
     row("no command", "", "the following arguments are required: COMMAND"),
-    row("unknown command", "fly", "invalid choice: 'fly'"),
+    row("unknown command", "hover", "invalid choice: 'hover'"),
     row("unknown top-level flag", "--bogus airframes", "unrecognized arguments: --bogus"),
     row("unknown subcommand flag", "airframes --bogus", "unrecognized arguments: --bogus"),
     # trim

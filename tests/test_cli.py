@@ -71,7 +71,7 @@ def test_ge_table_json_and_plot(capsys, tmp_path, ranger):
         (["trim", "--airframe", "navion", "--airspeed", "15"], "for navion at 15.00 m/s"),
         (["trim", "--airframe", "navion", "--airspeed", "abc"], "argument --airspeed: 'abc' is not a number"),
         (["ge-table"], "required: --airframe"),
-        (["fly"], "invalid choice"),
+        (["hover"], "invalid choice"),
     ],
 )
 def test_bad_input_exits_2_with_one_line(capsys, argv, needle):

@@ -16,8 +16,8 @@ from falcon_rl.cli import DESCRIPTION, command_modules, main
 
 ROOT = Path(__file__).resolve().parents[1]
 HEAVY = ("torch", "torchrl", "tensordict", "warp")
-COMMANDS = {"airframe", "airframes", "bench", "demo", "eval", "experiment", "ge-table", "train", "trim",
-            "validate"}
+COMMANDS = {"airframe", "airframes", "bench", "demo", "eval", "experiment", "fly", "ge-table", "replay",
+            "train", "trim", "validate", "xplane"}
 
 
 def run_python(code: str) -> dict:

@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 
 from ..constants import FT, KT
-from ..envs.recording import Recording
+from ..recording import Recording
 from ..viz.acmi import isa_density_ratio
 from ..viz.geodesy import DEFAULT_REFERENCE, ReferencePoint, euler_to_local_level, ned_to_geodetic
 

@@ -46,6 +46,7 @@ from torchrl.envs import EnvBase
 
 from ..physics.engine import fresh_seed
 from ..transforms.action_check import refuse_bad_action
+from .gym_render import RENDER_MODES, GymRenderer, check_render_mode
 from .tasks.registry import TASK_SPECS, SpecView, task_spec
 
 #: Task name -> Gymnasium id (a live, read-only view of the task registry).
@@ -151,13 +152,21 @@ class CoreAircraftEnv(gymnasium.Env):
     any robustness option (a ``TransformedEnv``), steps through TorchRL's ``step``. Both give the same
     numbers (tests/test_gym.py steps both side by side)."""
 
-    metadata: dict[str, Any] = {"render_modes": []}  # noqa: RUF012 (gymnasium's class attribute)
+    metadata: dict[str, Any] = {"render_modes": list(RENDER_MODES)}  # noqa: RUF012 (gymnasium's)
 
     def __init__(self, task: str = "altitude", airframe: str = "navion", backend: str = DEFAULT_BACKEND,
-                 device: str = "cpu", seed: int | None = None, fast_path: bool = True, **options: Any):
+                 device: str = "cpu", seed: int | None = None, fast_path: bool = True,
+                 render_mode: str | None = None, **options: Any):
         from .gym_core import TensorCore, tensor_core_env
 
+        check_render_mode(render_mode)
         self.env, self.build_seed = build_env(task, airframe, 1, backend, device, seed, options)
+        base = getattr(self.env, "base_env", self.env)
+        self.metadata = {**self.metadata, "render_fps": 1.0 / base.control_dt}
+        #: Gymnasium's render mode; the view is built only when there is one (see ``gym_render``).
+        self.render_mode = render_mode
+        self._renderer: GymRenderer | None = None if render_mode is None else GymRenderer(
+            render_mode, base, [0], self.metadata["render_fps"])
         self.observation_space, self.action_space = single_spaces(self.env)
         self._action_dtype = self.env.action_spec.dtype
         self._action_dim = int(self.action_space.shape[0])
@@ -176,9 +185,14 @@ class CoreAircraftEnv(gymnasium.Env):
             reseed(self.env, seed)
         if self.core is not None:
             observation, arrays = self.core.reset()
-            return observation[0], first_row(arrays)
-        data = self.env.reset()
-        return data["observation"][0].detach().cpu().numpy().astype(np.float32), first_row(task_arrays(data))
+            info = first_row(arrays)
+        else:
+            data = self.env.reset()
+            observation, info = data["observation"].detach().cpu().numpy().astype(np.float32), first_row(
+                task_arrays(data))
+        if self._renderer is not None:
+            self._renderer.observe(np.empty(0, dtype=bool))
+        return observation[0], info
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """One control period with ``action`` [A] (refused with ValueError unless [A] real float)."""
@@ -187,14 +201,34 @@ class CoreAircraftEnv(gymnasium.Env):
             raise ValueError(f"action must have shape [{self._action_dim}], got {list(shape)}")
         if self.core is not None:
             step = self.core.step(action_tensor(np.asarray(action)[None], 1, self._action_dim))
-            return (step.observation[0], step.reward[0].item(), bool(step.terminated[0]),
-                    bool(step.truncated[0]), first_row(step.info))
-        action_t = as_action(np.asarray(action)[None], 1, self._action_dim, self._action_dtype,
-                             self.env.device)
-        data = self.env.step(TensorDict({"action": action_t}, batch_size=[1], device=self.env.device))["next"]
-        obs = data["observation"][0].detach().cpu().numpy().astype(np.float32)
-        return (obs, float(data["reward"][0, 0]), bool(data["terminated"][0, 0]),
-                bool(data["truncated"][0, 0]), first_row(task_arrays(data)))
+            out = (step.observation[0], step.reward[0].item(), bool(step.terminated[0]),
+                   bool(step.truncated[0]), first_row(step.info))
+        else:
+            action_t = as_action(np.asarray(action)[None], 1, self._action_dim, self._action_dtype,
+                                 self.env.device)
+            data = self.env.step(TensorDict({"action": action_t}, batch_size=[1],
+                                            device=self.env.device))["next"]
+            obs = data["observation"][0].detach().cpu().numpy().astype(np.float32)
+            out = (obs, float(data["reward"][0, 0]), bool(data["terminated"][0, 0]),
+                   bool(data["truncated"][0, 0]), first_row(task_arrays(data)))
+        if self._renderer is not None:
+            self._renderer.observe()
+        return out
+
+    def render(self) -> np.ndarray | None:
+        """The current frame [H, W, 3] uint8 with ``render_mode="rgb_array"``; None in human mode (the
+        window is drawn at every step) and, with a warning, when the env was made without a mode."""
+        if self._renderer is None:
+            gymnasium.logger.warn("render() called on an env made without render_mode "
+                                  "(make it with render_mode='rgb_array' or 'human')")
+            return None
+        return self._renderer.frame() if self.render_mode == "rgb_array" else None
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+        super().close()
 
 
 def register_gym_envs() -> list[str]:

@@ -35,6 +35,7 @@ from __future__ import annotations
 
 from typing import Any
 
+import gymnasium
 import numpy as np
 import torch
 from gymnasium.vector import AutoresetMode, VectorEnv
@@ -43,6 +44,10 @@ from gymnasium.vector.utils import batch_space
 from ..transforms import flight_env
 from .gym import DEFAULT_BACKEND, action_tensor, as_action, build_env, reseed, single_spaces, task_arrays
 from .gym_core import TensorCore, Transition, tensor_core_env
+from .gym_render import GymRenderer
+
+#: The most sub-envs a vector env renders (one chase view each).
+MAX_RENDERED_ENVS = 16
 
 
 class FalconVectorEnv(VectorEnv):
@@ -50,13 +55,19 @@ class FalconVectorEnv(VectorEnv):
     docstring): observation space [N, D], action space [N, A], float32 Boxes."""
 
     metadata: dict[str, Any] = {"autoreset_mode": AutoresetMode.SAME_STEP,  # noqa: RUF012 (gymnasium's)
-                                "render_modes": []}
+                                "render_modes": ["rgb_array"]}
 
     def __init__(self, num_envs: int = 1, task: str = "altitude", airframe: str = "navion",
                  backend: str = DEFAULT_BACKEND, device: str = "cpu", seed: int | None = None,
-                 max_episode_steps: int | None = None, fast_path: bool = True, **options: Any):
+                 max_episode_steps: int | None = None, fast_path: bool = True,
+                 render_mode: str | None = None, **options: Any):
         if int(num_envs) < 1:
             raise ValueError(f"num_envs must be >= 1, got {num_envs}")
+        if render_mode not in (None, "rgb_array"):
+            raise ValueError(f"the vector env renders with render_mode='rgb_array' only, got {render_mode!r}")
+        if render_mode is not None and int(num_envs) > MAX_RENDERED_ENVS:
+            raise ValueError(f"render_mode with {num_envs} envs: at most {MAX_RENDERED_ENVS} are rendered "
+                             "(record the flight with RecordFlightVector and animate the recording instead)")
         self.num_envs = int(num_envs)
         self.env, self.build_seed = build_env(task, airframe, self.num_envs, backend, device, seed, options)
         self.single_observation_space, self.single_action_space = single_spaces(self.env)
@@ -74,6 +85,11 @@ class FalconVectorEnv(VectorEnv):
         self.core: TensorCore | None = None if core is None else TensorCore(core)
         self._data: Any = None  # the TorchRL path's current TensorDict
         self._started = False
+        #: Gymnasium's render mode; one view per sub-env, built only when rendering (``gym_render``).
+        self.render_mode = render_mode
+        self.metadata = {**self.metadata, "render_fps": 1.0 / base.control_dt}
+        self._renderers = [] if render_mode is None else [
+            GymRenderer(render_mode, base, [e], self.metadata["render_fps"]) for e in range(self.num_envs)]
 
     # ------------------------------------------------------------------ Gymnasium API
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
@@ -92,6 +108,8 @@ class FalconVectorEnv(VectorEnv):
         if seed is not None:
             reseed(self.env, int(seed))
         self._started = True
+        for renderer in self._renderers:
+            renderer.observe(np.empty(0, dtype=bool) if rows is None else rows)
         if self.core is not None:
             observation, arrays = self.core.reset(rows)
             return observation, self._info(arrays, rows)
@@ -110,6 +128,8 @@ class FalconVectorEnv(VectorEnv):
         step = self.step_transition(actions)
         info = self._info(step.info)
         done = step.done
+        for renderer in self._renderers:
+            renderer.observe(done)
         if done.any():
             final_obs = np.full(self.num_envs, None, dtype=object)
             for row in np.flatnonzero(done):
@@ -142,8 +162,19 @@ class FalconVectorEnv(VectorEnv):
                           info=task_arrays(self._data) if infos else None,
                           final_info=task_arrays(nxt) if infos else None)
 
+    def render(self) -> tuple[np.ndarray, ...] | None:
+        """One frame [H, W, 3] uint8 per sub-env (a chase view of each aircraft) with
+        ``render_mode="rgb_array"``; None, with a warning, without a render mode."""
+        if not self._renderers:
+            gymnasium.logger.warn("render() called on a vector env made without render_mode='rgb_array'")
+            return None
+        return tuple(renderer.frame() for renderer in self._renderers)
+
     def close_extras(self, **kwargs: Any) -> None:
-        """Close the TorchRL env."""
+        """Close the views and the TorchRL env."""
+        for renderer in self._renderers:
+            renderer.close()
+        self._renderers = []
         self.env.close()
 
     # ------------------------------------------------------------------ internals

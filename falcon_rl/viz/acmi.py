@@ -46,7 +46,7 @@ from pathlib import Path
 import numpy as np
 
 from ..constants import G0, LAPSE, R_AIR, T0
-from ..envs.recording import Recording
+from ..recording import Recording
 from .geodesy import DEFAULT_REFERENCE, ReferencePoint, euler_to_local_level, ned_to_geodetic
 
 #: The file type and version lines every ACMI file starts with.
