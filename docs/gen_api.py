@@ -17,15 +17,16 @@ from prose import inline
 PACKAGE = "falcon_rl"
 
 #: Page order, by the layers of the package (bottom to top); a subpackage not named here follows them.
-ORDER: tuple[str, ...] = ("airframe", "physics", "envs", "envs.tasks", "transforms", "baselines", "policies",
-                          "validation", "derive", "recipes", "evaluation", "viz", "modules")
+ORDER: tuple[str, ...] = ("airframe", "physics", "recording", "envs", "envs.tasks", "transforms", "baselines",
+                          "policies", "validation", "derive", "recipes", "evaluation", "viz", "bridges",
+                          "modules")
 
 #: Not in the API reference: the CLI subcommands have the CLI reference page; ``objectives`` is the
 #: deprecated alias of ``recipes`` (importing it warns).
 SKIPPED: frozenset[str] = frozenset({"commands", "objectives"})
 
 #: Top-level modules that get a page of their own; the others share the "modules" page.
-OWN_PAGE: frozenset[str] = frozenset({"airframe"})
+OWN_PAGE: frozenset[str] = frozenset({"airframe", "recording"})
 
 
 @dataclass(frozen=True)

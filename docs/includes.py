@@ -8,7 +8,10 @@ stands for that section of README.md (the text under the heading, to the next he
 a higher level; ``""`` names the text before the first section), ``<!-- include FILE -->`` for the
 whole file, and a file that is not Markdown comes as a code block. An indented directive (inside an
 admonition) indents what it includes. Paths are relative to the repository root. ``hooks.py`` applies
-them to every page; a missing file or section is a warning, so the strict build fails on it.
+them to every page; a missing file or section is a warning, so the strict build fails on it. Links
+and images of an included file that point into ``docs/`` (``](docs/images/x.png)``) are rebased onto
+the site (``](images/x.png)``), so README.md and the pages at the site's top level show the same
+pictures.
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 DIRECTIVE = re.compile(r'^(?P<indent>[ \t]*)<!-- include (?P<path>[^\s"]+)'
                        r'(?: "(?P<section>[^"]*)")? -->[ \t]*$', re.M)
+DOCS_LINK = re.compile(r"\]\(docs/")
 HEADING = re.compile(r"^(#{1,6}) +(.+?) *#*$")
 LANGUAGES = {".py": "python", ".sh": "bash", ".json": "json", ".toml": "toml", ".yml": "yaml",
              ".yaml": "yaml"}
@@ -53,11 +57,11 @@ def included(path: str, title: str | None) -> str:
     if target.suffix.lower() != ".md":
         return f"```{LANGUAGES.get(target.suffix.lower(), 'text')}\n{text.rstrip()}\n```"
     if title is None:
-        return text.rstrip()
+        return DOCS_LINK.sub("](", text.rstrip())
     body = section(text, title)
     if body is None:
         raise ValueError(f'include: {path} has no section "{title}"')
-    return body
+    return DOCS_LINK.sub("](", body)
 
 
 def expand(markdown: str, warn: Callable[[str], None]) -> str:

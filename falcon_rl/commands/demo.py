@@ -4,6 +4,8 @@
    ``--train``, one trained from scratch here), the LQR and MPPI baselines, scored on the paper's
    protocol; the table in the paper's layout and one PNG per controller.
 2. Trim of every shipped airframe at cruise and the ground-effect thrust table, with its figure.
+3. The flight seen: the LQR flying the attitude task's circle maneuver, as a 3D animation (GIF), a
+   Tacview file (ACMI) and the time-domain panels.
 
 Everything goes to ``runs/demo`` (report.md, results.json, PNGs). On a 2-core CPU the default run
 takes a few minutes; MPPI dominates, hence its small episode count.
@@ -106,6 +108,33 @@ def _trims_and_ground_effect(out: Path) -> tuple[list[str], dict]:
     return lines, doc
 
 
+#: The demo's flight: the attitude task's circle maneuver flown by the LQR, s.
+FLIGHT_SECONDS = 20.0
+
+
+def _seen_flight(args: argparse.Namespace, airframe: str, out: Path) -> tuple[list[str], dict]:
+    """Fly the circle with the LQR and write circle.gif, circle.acmi and the panels: (report lines,
+    document)."""
+    from ..viz.acmi import write_acmi
+    from ..viz.animation import write_animation
+    from ..viz.timeseries import plot_all
+    from .fly import fly
+
+    flight = argparse.Namespace(task="attitude", controller="lqr", maneuver="circle", envs=1,
+                                seconds=FLIGHT_SECONDS, seed=args.seed, backend=args.backend, device="cpu")
+    recording, summary = fly(flight, airframe, {"maneuver": "circle"})
+    gif = write_animation(recording, out / "circle.gif", fps=10.0, width=360, height=270)
+    acmi = write_acmi(recording, out / "circle.acmi")
+    panels = plot_all(recording, out / "circle_panels")
+    lines = ["## The flight seen: LQR on the circle maneuver", "",
+             f"{FLIGHT_SECONDS:.0f} s of the attitude task's circle on {airframe} (final bank "
+             f"{float(recording['euler'][-1, 0, 0]) * 57.29578:.1f} deg). Tacview file: [{acmi.name}]"
+             f"({acmi.name}); replay anything with `falcon-rl replay`.", "", f"![circle]({gif.name})", ""]
+    lines += [f"![{p.stem}]({p.parent.name}/{p.name})" for p in panels if p.stem in ("states", "forces")]
+    return [*lines, ""], {"flight": {**summary, "gif": str(gif), "acmi": str(acmi),
+                                     "panels": [str(p) for p in panels]}}
+
+
 def run(args: argparse.Namespace) -> int:
     import torch
 
@@ -122,12 +151,13 @@ def run(args: argparse.Namespace) -> int:
         source = "not scored: no shipped policy for this airframe"
     report = write_report(results, out, figures, "falcon-rl demo")
     trim_lines, trim_doc = _trims_and_ground_effect(out)
+    flight_lines, flight_doc = _seen_flight(args, airframe, out)
     text = report.read_text()
     head, _, tail = text.partition("## Altitude acquisition and hold")
     text = (head + f"## Altitude acquisition and hold ({airframe}; PPO {source})" + tail
-            + "\n" + "\n".join(trim_lines))
+            + "\n" + "\n".join(trim_lines) + "\n" + "\n".join(flight_lines))
     report.write_text(text)
-    doc = {"altitude": [result_document(r) for r in results], **trim_doc, "report": str(report),
+    doc = {"altitude": [result_document(r) for r in results], **trim_doc, **flight_doc, "report": str(report),
            "figures": [str(f) for f in figures], "training": training}
     emit(args, doc, text + f"\nreport: {report}")
     return 0

@@ -75,8 +75,9 @@ def _fields(config: object) -> tuple:
 
 
 def fly(args: argparse.Namespace, airframe: str, options: dict) -> tuple:
-    """Fly and record: (recording, summary {terminated, termination reasons, mean reward, final
-    heights})."""
+    """Fly and record until the seconds or every episode end (a maneuver's stream ends its episode):
+    (recording, summary {terminated (crashes, stalls: not the end of the episode), termination reasons,
+    mean reward, final heights})."""
     import numpy as np
     import torch
     from torchrl.envs import TransformedEnv
@@ -95,11 +96,13 @@ def fly(args: argparse.Namespace, airframe: str, options: dict) -> tuple:
     recorded = TransformedEnv(env, recorder)
     steps = env.max_episode_steps if args.seconds is None else max(1, round(args.seconds / env.control_dt))
     done = torch.zeros(args.envs, dtype=torch.bool, device=env.device)
+    terminated = torch.zeros_like(done)
     td = recorded.reset()
     with torch.no_grad():
         for _ in tqdm(range(steps), desc=f"fly {args.controller}", unit="step", leave=False, mininterval=1.0):
             td = recorded.step(policy(td))
             done |= td["next", "done"].reshape(-1)
+            terminated |= td["next", "terminated"].reshape(-1)
             td = recorded.step_mdp(td)
             if bool(done.all()):
                 break
@@ -107,7 +110,7 @@ def fly(args: argparse.Namespace, airframe: str, options: dict) -> tuple:
     reasons = recording["termination_reason"][-1] if recording.has("termination_reason") else None
     names = recording.meta.get("termination_reasons", [])
     summary = {
-        "terminated": int(done.sum()),
+        "terminated": int(terminated.sum()),
         "termination_reasons": [] if reasons is None else [names[r] if 0 <= r < len(names) else str(r)
                                                            for r in reasons.tolist()],
         "mean_reward": float(np.nanmean(recording["reward"])) if recording.has("reward") else float("nan"),
