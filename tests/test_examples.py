@@ -42,3 +42,11 @@ def test_torchrl_pipeline_collects_batches() -> None:
     done = _run("torchrl_pipeline.py")
     assert done.returncode == 0, done.stderr[-2000:]
     assert "batch 3" in done.stdout
+
+
+@pytest.mark.slow
+def test_maneuver_tracks_figure(tmp_path: Path) -> None:
+    done = _run("maneuver_tracks.py", "--seconds", "3", "--out", str(tmp_path))
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert (tmp_path / "tracks.png").stat().st_size > 50_000
+    assert len(list(tmp_path.glob("*.npz"))) == 8
