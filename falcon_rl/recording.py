@@ -276,6 +276,17 @@ class FlightLog:
         return self.builder.build()
 
 
+def save_recording(log: FlightLog | None, path: str | Path | None, default: Path | None) -> Path:
+    """Write what ``log`` recorded to ``path`` (else ``default``), the file written; ValueError when
+    there is no path or nothing was recorded (the recorders' ``save``)."""
+    target = path if path is not None else default
+    if target is None:
+        raise ValueError("no path: pass one here or to the constructor")
+    if log is None:
+        raise ValueError("nothing was recorded: append the recorder to an env and reset it")
+    return log.recording().save(target)
+
+
 def task_extras(task: Mapping[str, torch.Tensor] | None) -> dict[str, torch.Tensor]:
     """The task's entries {name: [N, ...]} as recording fields: what the aircraft should follow now
     (``reference_x`` and ``x_command`` entries, e.g. reference_altitude, bank_command) under

@@ -55,7 +55,7 @@ def test_bad_recordings_are_refused(tmp_path):
         Recording.load(foreign)
     garbage = tmp_path / "garbage.npz"
     garbage.write_bytes(b"not a zip")
-    with pytest.raises(RecordingError, match=r"garbage\.npz: cannot be read"):
+    with pytest.raises(RecordingError, match=r"garbage\.npz: not a recording"):
         Recording.load(garbage)
     other = tmp_path / "other.npz"
     np.savez(other, time=rec.time, meta=np.frombuffer(b'{"format": "x/9"}', dtype=np.uint8))

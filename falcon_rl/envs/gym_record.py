@@ -20,7 +20,7 @@ import gymnasium
 import numpy as np
 from gymnasium.vector import VectorWrapper
 
-from ..recording import FlightLog, Recording, task_extras
+from ..recording import FlightLog, Recording, save_recording, task_extras
 
 
 def _flight_base(env: Any) -> Any:
@@ -53,10 +53,7 @@ class _Recorder:
 
     def save(self, path: str | Path | None = None) -> Path:
         """Write the recording to ``path`` (default: the constructor's) and return the file."""
-        target = path if path is not None else self.path
-        if target is None:
-            raise ValueError("no path: pass one here or to the constructor")
-        return self.recording().save(target)
+        return save_recording(self.log, path, self.path)
 
 
 class RecordFlight(gymnasium.Wrapper, _Recorder):

@@ -20,7 +20,7 @@ from typing import Any
 from tensordict import TensorDictBase
 from torchrl.envs import Transform
 
-from ..recording import FlightLog, Recording, task_extras
+from ..recording import FlightLog, Recording, save_recording, task_extras
 from ._env import flight_env
 
 
@@ -88,10 +88,7 @@ class FlightRecorder(Transform):
 
     def save(self, path: str | Path | None = None) -> Path:
         """Write the recording to ``path`` (default: the constructor's) and return the file written."""
-        target = path if path is not None else self.path
-        if target is None:
-            raise ValueError("no path: pass one here or to the constructor")
-        return self.recording().save(target)
+        return save_recording(self._log, path, self.path)
 
     def close(self) -> None:
         if self.path is not None and self.num_frames:
