@@ -172,7 +172,7 @@ def bounded_int(low: int, high: int) -> Callable[[str], int]:
 episode_seconds = bounded_float(0.0, MAX_EPISODE_SECONDS, "s")
 
 
-def add_flight_arguments(parser: argparse.ArgumentParser, seconds_help: str, out_default: str,
+def add_flight_arguments(parser: argparse.ArgumentParser, seconds_help: str, out_default: str | None,
                          out_help: str) -> None:
     """The options every command that flies a protocol takes: --seed, --backend, --device, --seconds
     (episode length) and --out."""

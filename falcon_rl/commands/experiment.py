@@ -1,8 +1,19 @@
-"""``falcon-rl experiment ablation``: score controllers with each physical phenomenon simplified in turn.
+"""``falcon-rl experiment``: the paper's four studies, and the physics ablation.
 
+    falcon-rl experiment all --scale quick                     # the four studies, both airframes
+    falcon-rl experiment altitude --controllers ppo,lqr --seeds 3 --scale paper
+    falcon-rl experiment maneuvers --runner ray --ray-address auto
     falcon-rl experiment ablation --tasks altitude,attitude --airframe volantex_ranger \\
         --controllers lqr,ppo --episodes 20 --out runs/ablation
 
+The studies (altitude, maneuvers, ground-effect, robustness; ``all``) run as one sweep of cells, one
+per study x airframe x controller x training seed x MPPI draw, cached under ``--out``/cells: a killed
+sweep resumes where it stopped and a changed cell reruns alone (``falcon_rl.evaluation.experiment``).
+Each study writes ``--out``/<study>/report.md, tables.tex (the paper's layout), results.json and its
+figures. ``--scale quick`` is a smoke run with shipped policies and one seed; ``paper`` the paper's
+sizes. Learned rows without a shipped policy are trained with ``--train`` and otherwise left empty.
+
+``ablation``:
 For each task and controller, the task's protocol on the full model and on one arm per phenomenon
 (ideal actuators, no throttle lag, constant density, no rate damping, no propeller torque, no ground
 effect; ``falcon_rl.evaluation.ablation``). Writes report.md (a table per task: the headline metric,
@@ -27,20 +38,38 @@ from ._common import (
 )
 
 NAME = "experiment"
-HELP = "experiments over the benchmark's protocols: 'ablation' (each phenomenon simplified in turn)"
-ACTIONS = ("ablation",)
+HELP = "the paper's studies (altitude, maneuvers, ground-effect, robustness, all) and the physics ablation"
+STUDY_ACTIONS = ("altitude", "maneuvers", "ground-effect", "robustness")
+ACTIONS = (*STUDY_ACTIONS, "all", "ablation")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("action", choices=ACTIONS, help="ablation: one phenomenon simplified at a time")
-    parser.add_argument("--tasks", default="altitude,attitude", help="comma list of tasks")
-    parser.add_argument("--airframe", default="volantex_ranger", help="shipped name or path to a JSON file")
-    parser.add_argument("--controllers", default="lqr",
-                        help="comma list: the tasks' baselines (lqr, mppi, trim), ppo, policy files")
-    parser.add_argument("--episodes", type=positive_int, default=20,
-                        help="episodes per arm (attitude: per maneuver)")
-    add_flight_arguments(parser, "episode length, s (default: each protocol's own)", "runs/ablation",
-                         "output folder")
+    parser.add_argument("action", choices=ACTIONS,
+                        help="a study, all four, or ablation (one phenomenon simplified at a time)")
+    parser.add_argument("--airframes", default=None,
+                        help="studies: comma list of airframes (default airship_v7,volantex_ranger)")
+    parser.add_argument("--scale", choices=("quick", "paper"), default="quick",
+                        help="studies: quick (shipped policies, one seed) or paper (the paper's sizes)")
+    parser.add_argument("--seeds", type=positive_int, default=None,
+                        help="studies: training seeds of the learned rows (default: the scale's)")
+    parser.add_argument("--train", action="store_true",
+                        help="studies: train the learned policies that do not ship (long)")
+    parser.add_argument("--runner", choices=("local", "ray"), default="local",
+                        help="studies: run cells in local processes or as Ray tasks")
+    parser.add_argument("--workers", type=positive_int, default=1, help="studies: parallel cells")
+    parser.add_argument("--ray-address", default=None,
+                        help="studies, --runner ray: a cluster address or 'auto' (default: a local Ray)")
+    parser.add_argument("--tasks", default="altitude,attitude", help="ablation: comma list of tasks")
+    parser.add_argument("--airframe", default="volantex_ranger",
+                        help="ablation: shipped name or path to a JSON file")
+    parser.add_argument("--controllers", default=None,
+                        help="comma list (ablation default lqr: the tasks' baselines, ppo, policy files; "
+                             "studies default: each study's, from ppo, sac, td3, lqr, mppi)")
+    parser.add_argument("--episodes", type=positive_int, default=None,
+                        help="episodes per cell or arm (default: the scale's; ablation 20; attitude: per "
+                             "maneuver)")
+    add_flight_arguments(parser, "episode length, s (default: each protocol's own)", None,
+                         "output folder (default runs/experiment, ablation runs/ablation)")
 
 
 def _parse(args: argparse.Namespace) -> tuple[list[str], dict[str, str], str, Path]:
@@ -50,17 +79,31 @@ def _parse(args: argparse.Namespace) -> tuple[list[str], dict[str, str], str, Pa
     from ..envs.tasks import task_names
 
     tasks = comma_list(args.tasks, "--tasks", tuple(task_names()))
-    controllers = comma_list(args.controllers, "--controllers")
+    controllers = comma_list(args.controllers or "lqr", "--controllers")
     check_device(args.device)
     airframe = load_airframe(args.airframe).name
     labels = {}
     for task in tasks:
         for name in controllers:
             labels[name] = check_controller(name, task, args.airframe, "--controllers")
-    return tasks, labels, airframe, output_dir(args.out)
+    return tasks, labels, airframe, output_dir(args.out or "runs/ablation")
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.action != "ablation":
+        from ._studies import run_studies
+
+        check_device(args.device)
+        args.out = args.out or "runs/experiment"
+        studies = list(STUDY_ACTIONS) if args.action == "all" else [args.action]
+        document, text = run_studies(args, studies)
+        emit(args, document, text + f"\noutputs: {args.out}")
+        return 0
+    return run_ablation_command(args)
+
+
+def run_ablation_command(args: argparse.Namespace) -> int:
+    """``experiment ablation``: the protocols on the full model and on one arm per phenomenon."""
     from ..evaluation.ablation import ablation_document, ablation_markdown, run_ablation
     from ..evaluation.controllers import make_controller
     from ..viz.ablation import plot_ablation
@@ -71,12 +114,13 @@ def run(args: argparse.Namespace) -> int:
         for name, label in labels.items():
             results.append(run_ablation(task, args.airframe, label,
                                         lambda env, name=name: make_controller(name, env),
-                                        episodes=args.episodes, seed=args.seed, backend=args.backend,
+                                        episodes=args.episodes or 20, seed=args.seed,
+                                        backend=args.backend,
                                         device=args.device, episode_seconds=args.seconds))
     figure = plot_ablation(results, out / "ablation.png")
     table = ablation_markdown(results)
-    settings = {"episodes": args.episodes, "seed": args.seed, "backend": args.backend, "device": args.device,
-                "seconds": args.seconds}
+    settings = {"episodes": args.episodes or 20, "seed": args.seed, "backend": args.backend,
+                "device": args.device, "seconds": args.seconds}
     report = out / "report.md"
     report.write_text(f"# Ablation on {airframe}\n\nSettings: {json.dumps(settings)}\n\n{table}\n"
                       f"![ablation]({figure.name})\n")

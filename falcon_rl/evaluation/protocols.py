@@ -51,6 +51,7 @@ ALTITUDE_TRACES = (("next", "state", "height"), ("next", "task", "target_altitud
                    ("next", "task", "reference_altitude"), ("next", "state", "surface_position"),
                    ("next", "state", "throttle"), ("next", "state", "time"), ("next", "done"))
 ATTITUDE_TRACES = (("next", "state", "euler"), ("next", "task", "bank_command"),
+                   ("next", "state", "position_ned"), ("next", "state", "quaternion"),
                    ("next", "state", "time"), ("next", "done"))
 CLIMB_DESCEND_TRACES = (("next", "state", "height"), ("next", "state", "velocity_ned"),
                         ("next", "task", "target_altitude"), ("next", "task", "reference_altitude"),

@@ -102,10 +102,13 @@ def latex_escape(text: str) -> str:
 
 def format_value(value: Aggregate | float | None, digits: int = 2, ci: bool = False, latex: bool = False
                  ) -> str:
-    """"mean ± std" (and " [low, high]" with ``ci``) of an aggregate, the number alone for a float,
-    ``--`` for an empty aggregate, a non-finite number or None."""
+    """"mean ± std" (and " [low, high]" with ``ci``) of an aggregate of several replicates, the number
+    alone for one replicate (as the paper writes its LQR rows) or a float, ``--`` for an empty
+    aggregate, a non-finite number or None."""
     if value is None or (isinstance(value, Aggregate) and value.empty):
         return EMPTY
+    if isinstance(value, Aggregate) and value.n == 1:
+        value = value.mean
     if not isinstance(value, Aggregate):
         number = float(value)
         if not math.isfinite(number):

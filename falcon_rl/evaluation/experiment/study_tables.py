@@ -1,0 +1,55 @@
+"""The tables of each study, in the paper's layout: which cell metrics are columns, which cell fields
+label the rows, and the headers."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ...envs.maneuvers import MANEUVERS
+from ..ground_effect_table import H_OVER_B
+from .tables import Column
+
+_TITLES = {"circle": "Circle", "figure8": "Fig.-8", "helix": "Helix", "s_turn": "S-turn"}
+
+
+@dataclass(frozen=True)
+class StudyTable:
+    """One table: ``name`` (file label), ``title`` (caption), row ``labels`` (cell fields or params)
+    with their ``headers``, and metric ``columns``."""
+
+    name: str
+    title: str
+    labels: tuple[str, ...]
+    headers: tuple[str, ...]
+    columns: tuple[Column, ...]
+
+
+STUDY_TABLES: dict[str, tuple[StudyTable, ...]] = {
+    "altitude": (StudyTable(
+        "protocol", "Altitude acquisition and hold", ("airframe", "controller"), ("Airframe", "Alg."),
+        (Column("survival", "Surv."), Column("acquisition", "Acq."), Column("rmse_m", "RMSE (m)"),
+         Column("settling_time_s", "t_s (s)", 1), Column("overshoot_m", "Over. (m)"))),),
+    "maneuvers": (
+        StudyTable("bank", "Bank-angle RMSE (deg), mean +- std over seeds", ("airframe", "controller"),
+                   ("Airframe", "Alg."),
+                   tuple(Column(f"{m}/bank_rmse_deg", _TITLES[m]) for m in MANEUVERS)),
+        StudyTable("band", "Bank time-in-band (fraction within +-8.6 deg)", ("airframe", "controller"),
+                   ("Airframe", "Alg."),
+                   tuple(Column(f"{m}/bank_time_in_band", _TITLES[m]) for m in MANEUVERS)),
+        StudyTable("channels", "Climb-rate and airspeed RMSE (m/s) over the four maneuvers",
+                   ("airframe", "controller"), ("Airframe", "Alg."),
+                   tuple(Column(f"{m}/{k}", f"{_TITLES[m]} {u}") for m in MANEUVERS
+                         for k, u in (("climb_rate_rmse_mps", "hdot"), ("airspeed_rmse_mps", "V"))))),
+    "ground-effect": (
+        StudyTable("policy", "Ground-effect impact on thrust: Delta T_pi (%), the thrust change while the "
+                   "controller holds each h/b band, correction on vs off", ("airframe", "controller"),
+                   ("Airframe", "Alg."),
+                   tuple(Column(f"{b:g}/delta_t_pi_pct", f"h/b {b:g}") for b in H_OVER_B)),
+        StudyTable("trim", "Delta T (%) of the trim-only table and the lifting-line theory at the same bands",
+                   ("airframe", "controller"), ("Airframe", "Alg."),
+                   tuple(Column(f"{b:g}/{k}", f"{b:g} {u}") for b in H_OVER_B
+                         for k, u in (("delta_t_trim_pct", "trim"), ("theory_pct", "theory"))))),
+    "robustness": (StudyTable(
+        "grid", "Attitude-executor robustness: survival and bank RMSE (deg) on the true state",
+        ("airframe", "controller"), ("Airframe", "Alg."), ()),),
+}
