@@ -271,6 +271,26 @@ def ground_effect_cell(cell: Cell) -> dict[str, Any]:
             "rows": [{k: v for k, v in row.items() if k not in ("ge", "no_ge")} for row in result.to_rows()]}
 
 
+def robustness_cell(cell: Cell) -> dict[str, Any]:
+    """The robustness grid of one airframe and controller over the four maneuvers (each cut to the
+    cell's seconds): per (family, level) (summary "<family>/<level>/<metric>") survival, bank RMSE
+    (deg), climb-rate and airspeed RMSE (m/s), all from the true state; the rows whole."""
+    from ..robustness import robustness_grid
+
+    try:
+        source = policy_source(cell)
+    except NoPolicyError as error:
+        return _no_policy(error)
+    params = cell.param_dict
+    result = robustness_grid(cell.airframe, cell.controller.upper(), factory(cell, source),
+                             episodes=int(params["episodes"]), seconds=float(params["episode_seconds"]),
+                             seed=cell.seed + 1000 * cell.draw, backend=params.get("backend", "warp"))
+    rows = result.to_rows()
+    summary = {f"{row['family']}/{row['level']}/{metric}": row[metric] for row in rows
+               for metric in ("survival", "bank_rmse_deg", "climb_rate_rmse_mps", "airspeed_rmse_mps")}
+    return {"summary": summary, "rows": rows}
+
+
 for _study, _name in (("altitude", "altitude_cell"), ("maneuvers", "maneuvers_cell"),
-                      ("ground-effect", "ground_effect_cell")):
+                      ("ground-effect", "ground_effect_cell"), ("robustness", "robustness_cell")):
     register_cell_function(_study, f"{__name__}:{_name}")

@@ -6,7 +6,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ...envs.maneuvers import MANEUVERS
+from ...transforms.presets import GRID
 from ..ground_effect_table import H_OVER_B
+from ..robustness import FAMILIES
 from .tables import Column
 
 _TITLES = {"circle": "Circle", "figure8": "Fig.-8", "helix": "Helix", "s_turn": "S-turn"}
@@ -49,7 +51,10 @@ STUDY_TABLES: dict[str, tuple[StudyTable, ...]] = {
                    ("airframe", "controller"), ("Airframe", "Alg."),
                    tuple(Column(f"{b:g}/{k}", f"{b:g} {u}") for b in H_OVER_B
                          for k, u in (("delta_t_trim_pct", "trim"), ("theory_pct", "theory"))))),
-    "robustness": (StudyTable(
-        "grid", "Attitude-executor robustness: survival and bank RMSE (deg) on the true state",
-        ("airframe", "controller"), ("Airframe", "Alg."), ()),),
+    "robustness": tuple(StudyTable(
+        f"{family}-{metric}", f"Attitude-executor robustness, {family}: {title} (true state)",
+        ("airframe", "controller"), ("Airframe", "Alg."),
+        tuple(Column(f"{family}/{level}/{metric}", level) for level in GRID))
+        for family in FAMILIES
+        for metric, title in (("survival", "survival"), ("bank_rmse_deg", "bank RMSE (deg)"))),
 }
