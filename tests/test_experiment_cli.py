@@ -1,0 +1,64 @@
+"""``falcon-rl experiment <study>``: a small sweep writes its report, LaTeX tables, results.json and
+figure; a second run reads every cell from the cache; a learned row without a policy stays empty."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+from pathlib import Path
+
+import pytest
+
+from falcon_rl.cli import main
+
+
+def run(*args: str) -> dict:
+    printed = io.StringIO()
+    with contextlib.redirect_stdout(printed):
+        assert main(["experiment", *args, "--json"]) == 0
+    return json.loads(printed.getvalue())
+
+
+def test_altitude_study_writes_its_outputs_and_resumes(tmp_path: Path) -> None:
+    args = ("altitude", "--airframes", "volantex_ranger,airship_v7", "--controllers", "lqr,ppo",
+            "--episodes", "2", "--out", str(tmp_path))
+    doc = run(*args)
+    study = doc["studies"]["altitude"]
+    assert study["cells"] == 4 and study["finished"] == 4
+    report = Path(study["report"]).read_text()
+    assert "| volantex_ranger | lqr |" in report and "no policy" in report  # no PPO ships for the V7
+    assert "\\toprule" in Path(study["tables"]).read_text()
+    results = json.loads(Path(study["results"]).read_text())
+    assert results["format"] == "falcon-rl-experiment/1"
+    lqr = next(c for c in results["cells"] if c["controller"] == "lqr" and c["airframe"] == "volantex_ranger")
+    assert lqr["summary"]["survival"] == 1.0 and lqr["summary"]["rmse_m"] < 0.5
+    v7_ppo = next(a for a in results["aggregates"]
+                  if a["controller"] == "ppo" and a["airframe"] == "airship_v7")
+    assert v7_ppo["metrics"] == {}  # an empty entry, as the paper leaves it
+    assert [Path(f).name for f in study["figures"]] == ["altitude.png"]
+    cache = sorted((tmp_path / "cells").glob("*.json"))
+    stamps = [p.stat().st_mtime_ns for p in cache]
+    again = run(*args)  # every cell from the cache: nothing rewritten, the same numbers
+    assert [p.stat().st_mtime_ns for p in cache] == stamps
+    assert json.loads(Path(again["studies"]["altitude"]["results"]).read_text())["cells"] == results["cells"]
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (("altitude", "--controllers", "pid"), "--controllers: unknown ['pid']"),
+    (("altitude", "--airframes", "nope"), "nope"),
+])
+def test_bad_study_options_exit_2(args: tuple[str, ...], message: str, capsys, tmp_path: Path) -> None:
+    assert main(["experiment", *args, "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and len(err.splitlines()) == 1
+
+
+@pytest.mark.slow
+def test_every_study_at_a_tiny_scale(tmp_path: Path) -> None:
+    doc = run("all", "--airframes", "volantex_ranger", "--controllers", "lqr", "--episodes", "1",
+              "--seconds", "3", "--out", str(tmp_path))
+    assert set(doc["studies"]) == {"altitude", "maneuvers", "ground-effect", "robustness"}
+    for name, study in doc["studies"].items():
+        assert study["finished"] == study["cells"], name
+        assert study["figures"], name
