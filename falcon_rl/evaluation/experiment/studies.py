@@ -85,6 +85,9 @@ def study_cells(study: str, airframes: tuple[str, ...], controllers: tuple[str, 
             for seed in seeds:
                 for draw in draws:
                     params = {**options, **_study_params(study, controller, scale)}
+                    if controller in LEARNED:  # a new or retrained policy file makes a new cell
+                        params["policy"] = policy_identity(Cell.make(study, STUDY_TASK[study], airframe,
+                                                                     controller, seed, draw, params))
                     cells.append(Cell.make(study, STUDY_TASK[study], airframe, controller, seed, draw,
                                            params))
     return cells
@@ -130,6 +133,24 @@ def policy_source(cell: Cell) -> str:
         raise NoPolicyError(f"no {cell.controller} policy for {cell.task} on {cell.airframe} (seed "
                             f"{cell.seed}): none ships; train one with --train")
     return _train(cell, folder)
+
+
+def policy_identity(cell: Cell) -> str:
+    """The first 16 hex digits of the sha256 of the policy file ``cell`` would fly now, "none" when
+    there is none yet (part of a learned cell's key, so a new policy reruns its cells alone)."""
+    import hashlib
+
+    try:
+        path = Path(policy_source(replace_train(cell, False)))
+    except NoPolicyError:
+        return "none"
+    return hashlib.sha256(path.read_bytes()).hexdigest()[:16]
+
+
+def replace_train(cell: Cell, train: bool) -> Cell:
+    """``cell`` with its ``train`` param set to ``train``."""
+    return Cell.make(cell.study, cell.task, cell.airframe, cell.controller, cell.seed, cell.draw,
+                     {**cell.param_dict, "train": train})
 
 
 def _train(cell: Cell, folder: Path) -> str:
