@@ -58,6 +58,16 @@ REQUIRED_FIELDS: tuple[str, ...] = ("position_ned", "quaternion")
 _SKIPPED_STATE_FIELDS = frozenset({"time", "surface_rate", "ground_contact"})
 
 
+def quaternion_euler(quaternion: np.ndarray) -> np.ndarray:
+    """Aerospace ZYX (roll, pitch, yaw) [..., 3] rad of body-to-NED quaternions [..., 4] (w, x, y, z):
+    the NumPy twin of ``physics.rotations.quaternion_to_euler`` for recordings and viewers."""
+    w, x, y, z = np.moveaxis(np.asarray(quaternion, dtype=np.float64), -1, 0)
+    roll = np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
+    pitch = np.arcsin(np.clip(2 * (w * y - z * x), -1.0, 1.0))
+    yaw = np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+    return np.stack([roll, pitch, yaw], axis=-1)
+
+
 class RecordingError(ValueError):
     """A recording file or array that breaks the schema (the message names the file and field)."""
 

@@ -122,3 +122,12 @@ def test_gymnasium_recorders(tmp_path):
         vector.step(np.zeros((3, 2), np.float32))
     rec = vector.recording()
     assert rec.num_frames == 6 and rec.num_envs == 1 and "reference/altitude" in rec.fields
+
+
+def test_numpy_euler_matches_the_physics():
+    from falcon_rl.physics.rotations import quaternion_to_euler
+    from falcon_rl.recording import quaternion_euler
+
+    q = torch.nn.functional.normalize(torch.randn(64, 4, generator=torch.Generator().manual_seed(0),
+                                                  dtype=torch.float64), dim=-1)
+    np.testing.assert_allclose(quaternion_euler(q.numpy()), quaternion_to_euler(q).numpy(), atol=1e-12)

@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 
 from ..constants import FT, KT
-from ..recording import Recording
+from ..recording import Recording, quaternion_euler
 from ..viz.acmi import isa_density_ratio
 from ..viz.geodesy import DEFAULT_REFERENCE, ReferencePoint, euler_to_local_level, ned_to_geodetic
 
@@ -137,13 +137,6 @@ def _normalised(value: float, limits: tuple[float, float] | None) -> float:
     return float(np.clip(value / scale, -1.0, 1.0)) if scale > 0 else 0.0
 
 
-def _quaternion_to_euler(q: np.ndarray) -> np.ndarray:
-    w, x, y, z = (float(v) for v in q)
-    return np.array([math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y)),
-                     math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x)))),
-                     math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))])
-
-
 def fdm_values(frame: Mapping[str, Any], reference: ReferencePoint | None = None,
                surface_limits: Mapping[str, tuple[float, float]] | None = None,
                unix_time: float | None = None) -> dict[str, Any]:
@@ -169,7 +162,7 @@ def fdm_values(frame: Mapping[str, Any], reference: ReferencePoint | None = None
         quaternion = get("quaternion", 4)
         if quaternion is None:
             raise ValueError("frame needs euler or quaternion")
-        euler = _quaternion_to_euler(quaternion)
+        euler = quaternion_euler(quaternion)
     ref = reference or DEFAULT_REFERENCE
     lat, lon, alt = (float(v) for v in ned_to_geodetic(ref, ned))
     phi, theta, psi = (float(v) for v in euler_to_local_level(ref, ned, euler))

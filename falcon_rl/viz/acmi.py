@@ -46,7 +46,7 @@ from pathlib import Path
 import numpy as np
 
 from ..constants import G0, LAPSE, R_AIR, T0
-from ..recording import Recording
+from ..recording import Recording, quaternion_euler
 from .geodesy import DEFAULT_REFERENCE, ReferencePoint, euler_to_local_level, ned_to_geodetic
 
 #: The file type and version lines every ACMI file starts with.
@@ -148,14 +148,6 @@ class AcmiObjectEncoder:
         return f"{self.hex_id}," + ",".join(parts) if parts else None
 
 
-def _quaternion_to_euler(q: np.ndarray) -> np.ndarray:
-    w, x, y, z = (q[..., i].astype(np.float64) for i in range(4))
-    roll = np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
-    pitch = np.arcsin(np.clip(2 * (w * y - z * x), -1.0, 1.0))
-    yaw = np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
-    return np.stack([roll, pitch, yaw], axis=-1)
-
-
 def isa_density_ratio(altitude_m: np.ndarray) -> np.ndarray:
     """rho / rho0 of the ISA troposphere at ``altitude_m`` [...] m."""
     temperature = T0 + LAPSE * np.clip(np.asarray(altitude_m, np.float64), -1000.0, 11000.0)
@@ -170,7 +162,7 @@ def recording_geodetic(rec: Recording, reference: ReferencePoint | None = None
     if not np.all(np.isfinite(ned)):
         raise ValueError("recording position_ned has non-finite values")
     euler = (np.asarray(rec["euler"], np.float64) if rec.has("euler")
-             else _quaternion_to_euler(np.asarray(rec["quaternion"])))
+             else quaternion_euler(np.asarray(rec["quaternion"])))
     if euler.shape != ned.shape or not np.all(np.isfinite(euler)):
         raise ValueError(f"recording attitude must be finite with shape {ned.shape}, got {euler.shape}")
     lat, lon, alt = ned_to_geodetic(reference, ned)

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..recording import Recording
+from ..recording import Recording, quaternion_euler
 from .scene import FrameRenderer
 
 #: Suffixes write_animation understands.
@@ -44,8 +44,7 @@ def bank_angles(rec: Recording) -> np.ndarray:
     """Bank (roll) angles [T, E] rad: ``euler[..., 0]`` when recorded, else from ``quaternion``."""
     if rec.has("euler"):
         return np.asarray(rec["euler"][..., 0], dtype=np.float64)
-    w, x, y, z = np.moveaxis(np.asarray(rec["quaternion"], dtype=np.float64), -1, 0)
-    return np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
+    return quaternion_euler(rec["quaternion"])[..., 0]
 
 
 def auto_scale(rec: Recording, spans: Sequence[float]) -> float:

@@ -11,13 +11,8 @@ from typing import Any
 
 import numpy as np
 
+from ..recording import quaternion_euler
 from .scene import FrameRenderer
-
-
-def bank_of(quaternion: np.ndarray) -> np.ndarray:
-    """Bank (aerospace ZYX roll) angles [...] rad of body-to-NED quaternions [..., 4] (w, x, y, z)."""
-    w, x, y, z = np.moveaxis(np.asarray(quaternion, dtype=np.float64), -1, 0)
-    return np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
 
 
 class FlightView:
@@ -49,7 +44,7 @@ class FlightView:
         self.position = np.asarray(position_ned, dtype=np.float64).reshape(self.num_aircraft, 3)
         self.quaternion = np.asarray(quaternion, dtype=np.float64).reshape(self.num_aircraft, 4)
         self.time = float(time)
-        bank = bank_of(self.quaternion)
+        bank = quaternion_euler(self.quaternion)[:, 0]
         for e, trail in enumerate(self.trails):
             trail.append((self.position[e].copy(), float(bank[e])))
 
