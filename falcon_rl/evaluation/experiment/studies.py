@@ -8,9 +8,9 @@ that runs one cell.
     robustness      the attitude executor under sensor noise, sensor delay, action delay, turbulence
 
 Scales (:data:`SCALES`): ``quick`` (a smoke run of about a quarter of an hour on a 2-core CPU: shipped
-policies, one seed, small episode counts, maneuvers cut to 20 s) and ``paper`` (the paper's sizes: 200
-altitude episodes for learned rows, 50 for LQR and MPPI, 3 training seeds, 5 MPPI draws, 25 episodes
-per maneuver, whole streams).
+policies, one seed, small episode counts, maneuvers cut to 20 s, the robustness grid on the circle
+only) and ``paper`` (the paper's sizes: 200 altitude episodes for learned rows, 50 for LQR and MPPI,
+3 training seeds, 5 MPPI draws, 25 episodes per maneuver, whole streams).
 
 Learned controllers (ppo, sac, td3) fly, for training seed k, the shipped policy of (task, airframe,
 algorithm) when k = 0 and one ships, else ``<policies>/<algorithm>_<task>_<airframe>_seed<k>/policy.pt``
@@ -26,6 +26,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ...envs.maneuvers import MANEUVERS
 from .cells import Cell, register_cell_function
 
 STUDIES: tuple[str, ...] = ("altitude", "maneuvers", "ground-effect", "robustness")
@@ -57,17 +58,20 @@ class Scale:
     mppi_maneuver_episodes: int
     ge_episodes: int  # per h/b band and correction
     ge_seconds: float  # episode length of the ground-effect study (the last third is the settled window)
-    robustness_episodes: int  # per grid cell
-    robustness_seconds: float
+    robustness_episodes: int  # per grid cell and maneuver
+    robustness_seconds: float  # each maneuver cut to this
+    robustness_maneuvers: tuple[str, ...]  # the maneuvers every robustness cell flies
 
 
 SCALES: dict[str, Scale] = {
     "quick": Scale(learned_episodes=20, baseline_episodes=10, mppi_episodes=2, seeds=(0,), mppi_draws=1,
                    maneuver_episodes=2, maneuver_seconds=20.0, mppi_maneuver_episodes=1, ge_episodes=2,
-                   ge_seconds=15.0, robustness_episodes=4, robustness_seconds=10.0),
+                   ge_seconds=15.0, robustness_episodes=4, robustness_seconds=10.0,
+                   robustness_maneuvers=("circle",)),
     "paper": Scale(learned_episodes=200, baseline_episodes=50, mppi_episodes=50, seeds=(0, 1, 2),
                    mppi_draws=5, maneuver_episodes=25, maneuver_seconds=None, mppi_maneuver_episodes=5,
-                   ge_episodes=10, ge_seconds=30.0, robustness_episodes=32, robustness_seconds=30.0),
+                   ge_episodes=10, ge_seconds=30.0, robustness_episodes=32, robustness_seconds=30.0,
+                   robustness_maneuvers=MANEUVERS),
 }
 
 
@@ -104,7 +108,8 @@ def _study_params(study: str, controller: str, scale: Scale) -> dict[str, Any]:
         return {"episodes": episodes, "episode_seconds": scale.maneuver_seconds}
     if study == "ground-effect":
         return {"episodes": scale.ge_episodes, "episode_seconds": scale.ge_seconds}
-    return {"episodes": scale.robustness_episodes, "episode_seconds": scale.robustness_seconds}
+    return {"episodes": scale.robustness_episodes, "episode_seconds": scale.robustness_seconds,
+            "maneuvers": scale.robustness_maneuvers}
 
 
 # ---------------------------------------------------------------------------------------- controllers
@@ -305,7 +310,8 @@ def robustness_cell(cell: Cell) -> dict[str, Any]:
     params = cell.param_dict
     result = robustness_grid(cell.airframe, cell.controller.upper(), factory(cell, source),
                              episodes=int(params["episodes"]), seconds=float(params["episode_seconds"]),
-                             seed=cell.seed + 1000 * cell.draw, backend=params.get("backend", "warp"))
+                             maneuvers=tuple(params["maneuvers"]), seed=cell.seed + 1000 * cell.draw,
+                             backend=params.get("backend", "warp"))
     rows = result.to_rows()
     summary = {f"{row['family']}/{row['level']}/{metric}": row[metric] for row in rows
                for metric in ("survival", "bank_rmse_deg", "climb_rate_rmse_mps", "airspeed_rmse_mps")}
