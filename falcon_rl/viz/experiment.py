@@ -162,6 +162,8 @@ def plot_robustness_study(results: Results, path: str | Path) -> Path | None:
                 values = [np.nan if r.get(key) is None else r[key] for r in rows]
                 ax.plot(levels, values, "o-", color=f"C{index}", label=f"{airframe} / {controller}")
                 ax.set(ylabel=label, title=family if row == 0 else None)
+                if key == "survival":
+                    ax.set_ylim(-0.05, 1.05)
                 ax.grid(alpha=0.3)
     axes[0, 0].legend(fontsize=7)
     fig.suptitle("Robustness of the attitude executor (true state)")
