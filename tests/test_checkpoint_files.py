@@ -201,11 +201,13 @@ def test_policy_and_checkpoint_files_are_sealed(trained: Path):
 
 
 @pytest.mark.parametrize("stem", available())
-def test_shipped_policies_load_as_legacy(stem):
-    """The shipped files predate the checksum (format /1): they load after the structure checks."""
+def test_shipped_policies_load(stem):
+    """A shipped file is either of the current format with a verified checksum, or predates the checksum
+    (format /1) and loads after the structure checks."""
     _, task, *airframe = stem.split("_")
     path = shipped_policy(task, "_".join(airframe))
-    assert read_document(path, "policy")["format"] in LEGACY_FORMATS
+    doc = read_document(path, "policy")
+    assert doc["format"] in LEGACY_FORMATS or doc["sha256"] == content_digest(doc)
     policy, meta = read_policy(path)
     action = policy(torch.zeros(3, policy.mlp[0].in_features))
     assert action.shape == (3, policy.act_dim) and torch.isfinite(action).all() and meta["task"] == task
