@@ -112,7 +112,8 @@ def _statuses(cells: list, results: dict) -> list[str]:
     for cell in cells:
         status = results.get(cell.key(), {}).get("status")
         if status:
-            lines.append(f"- {cell.label()}: {status}")
+            lines.append(f"- {cell.airframe} / {cell.controller} (seed {cell.seed}, draw {cell.draw}): "
+                         f"{status}")
     return lines
 
 
