@@ -21,21 +21,21 @@ def run(*args: str) -> dict:
 
 
 def test_altitude_study_writes_its_outputs_and_resumes(tmp_path: Path) -> None:
-    args = ("altitude", "--airframes", "volantex_ranger,airship_v7", "--controllers", "lqr,ppo",
+    args = ("altitude", "--airframes", "volantex_ranger,airship_v7", "--controllers", "lqr,sac",
             "--episodes", "2", "--out", str(tmp_path))
     doc = run(*args)
     study = doc["studies"]["altitude"]
     assert study["cells"] == 4 and study["finished"] == 4
     report = Path(study["report"]).read_text()
-    assert "| volantex_ranger | lqr |" in report and "no policy" in report  # no PPO ships for the V7
+    assert "| volantex_ranger | lqr |" in report and "no policy" in report  # no SAC policy ships
     assert "\\toprule" in Path(study["tables"]).read_text()
     results = json.loads(Path(study["results"]).read_text())
     assert results["format"] == "falcon-rl-experiment/1"
     lqr = next(c for c in results["cells"] if c["controller"] == "lqr" and c["airframe"] == "volantex_ranger")
     assert lqr["summary"]["survival"] == 1.0 and lqr["summary"]["rmse_m"] < 0.5
-    v7_ppo = next(a for a in results["aggregates"]
-                  if a["controller"] == "ppo" and a["airframe"] == "airship_v7")
-    assert v7_ppo["metrics"] == {}  # an empty entry, as the paper leaves it
+    v7_sac = next(a for a in results["aggregates"]
+                  if a["controller"] == "sac" and a["airframe"] == "airship_v7")
+    assert v7_sac["metrics"] == {}  # an empty entry, as the paper leaves it
     assert [Path(f).name for f in study["figures"]] == ["altitude.png"]
     cache = sorted((tmp_path / "cells").glob("*.json"))
     stamps = [p.stat().st_mtime_ns for p in cache]
@@ -46,6 +46,7 @@ def test_altitude_study_writes_its_outputs_and_resumes(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize(("args", "message"), [
     (("altitude", "--controllers", "pid"), "--controllers: unknown ['pid']"),
+    (("altitude", "--controllers", ""), "--controllers must be a comma list"),
     (("altitude", "--airframes", "nope"), "nope"),
 ])
 def test_bad_study_options_exit_2(args: tuple[str, ...], message: str, capsys, tmp_path: Path) -> None:

@@ -38,7 +38,8 @@ def study_cells(args: argparse.Namespace, studies: list[str], out: Path) -> dict
                                                                   "--airframes"))
     scale = scale_of(args)
     options = {"backend": args.backend, "policies": str(out / "policies"), "train": bool(args.train)}
-    asked = tuple(comma_list(args.controllers, "--controllers", CONTROLLERS)) if args.controllers else None
+    asked = (None if args.controllers is None
+             else tuple(comma_list(args.controllers, "--controllers", CONTROLLERS)))
     return {study: cells_of(study, airframes, asked or STUDY_CONTROLLERS[study], scale, options)
             for study in studies}
 

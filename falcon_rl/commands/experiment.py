@@ -79,7 +79,7 @@ def _parse(args: argparse.Namespace) -> tuple[list[str], dict[str, str], str, Pa
     from ..envs.tasks import task_names
 
     tasks = comma_list(args.tasks, "--tasks", tuple(task_names()))
-    controllers = comma_list(args.controllers or "lqr", "--controllers")
+    controllers = comma_list("lqr" if args.controllers is None else args.controllers, "--controllers")
     check_device(args.device)
     airframe = load_airframe(args.airframe).name
     labels = {}
