@@ -20,6 +20,7 @@ import json
 
 import torch
 
+from falcon_rl.evaluation.controllers import reused_controller
 from falcon_rl.evaluation.robustness import FAMILIES, robustness_grid
 from falcon_rl.transforms.presets import GRID
 
@@ -61,8 +62,11 @@ def main() -> None:
     torch.manual_seed(args.seed)
     if args.envs <= 512:
         torch.set_num_threads(1)  # small batches: per-op overhead dominates, threads only add sync cost
-    grid = robustness_grid(args.airframe, args.controller, episodes=args.envs, seconds=args.seconds,
-                           maneuvers=("random",), seed=args.seed)
+    def controller(env):  # the LQR designed once for the whole grid
+        return reused_controller(args.controller, env)
+
+    grid = robustness_grid(args.airframe, args.controller, controller, episodes=args.envs,
+                           seconds=args.seconds, maneuvers=("random",), seed=args.seed)
     for row in grid.to_rows():
         cell = {k: row[k] for k in ("severity", "unit", "survival", "bank_rmse_deg")}
         print(f"{row['family']:13s} {row['level']:8s} {json.dumps(cell)}", flush=True)

@@ -23,10 +23,10 @@ from falcon_rl.viz.geodesy import DEFAULT_REFERENCE, geodetic_to_ned
 
 @pytest.fixture(scope="module")
 def flown(tmp_path_factory):
-    """An LQR circle on the Volantex Ranger, 8 s, with every file output: (folder, JSON document)."""
+    """An LQR circle on the Volantex Ranger, 6 s, with every file output: (folder, JSON document)."""
     out = tmp_path_factory.mktemp("fly")
     args = ["fly", "--controller", "lqr", "--task", "attitude", "--airframe", "volantex_ranger",
-            "--maneuver", "circle", "--seconds", "8", "--acmi", str(out / "a.acmi"), "--gif",
+            "--maneuver", "circle", "--seconds", "6", "--acmi", str(out / "a.acmi"), "--gif",
             str(out / "a.gif"), "--plots", str(out / "p"), "--record", str(out / "r.npz"), "--json"]
     printed = io.StringIO()
     with contextlib.redirect_stdout(printed):
@@ -36,7 +36,7 @@ def flown(tmp_path_factory):
 
 def test_fly_writes_every_output(flown):
     out, doc = flown
-    assert doc["terminated"] == 0 and doc["seconds"] == pytest.approx(8.0)
+    assert doc["terminated"] == 0 and doc["seconds"] == pytest.approx(6.0)
     rec = Recording.load(out / "r.npz")
     assert rec.meta["controller"] == "lqr" and rec.meta["maneuver"] == "circle"
     # The circle banks to about 28 deg after the 2 s lead-in and the 2 s roll-in.

@@ -9,6 +9,7 @@ altitude policy on climb_descend, which keeps the altitude MDP).
 
 from __future__ import annotations
 
+import copy
 from pathlib import Path
 
 from tensordict import TensorDictBase
@@ -58,6 +59,24 @@ def make_controller(name: str, env: FixedWingEnv) -> TensorDictModuleBase:
     return policy
 
 
+#: Designed LQRs by (task, airframe, control step, ground-effect mode, device, dtype): a design trims
+#: and linearises a grid of points (seconds), and depends on nothing else of the env.
+_LQR_DESIGNS: dict[tuple, TensorDictModuleBase] = {}
+
+
+def reused_controller(name: str, env: FixedWingEnv) -> TensorDictModuleBase:
+    """:func:`make_controller`, with an LQR designed once per (task, airframe, control step, ground-effect
+    mode, device, dtype) and handed out as a fresh copy (no integrator state crosses envs): for sweeps
+    that build many envs of one airframe (the robustness grid, the ground-effect bands)."""
+    if name != "lqr":
+        return make_controller(name, env)
+    key = (env.config.task, env.sim.airframe.name, env.env_dt, str(env.config.ground_effect), str(env.device),
+           env.sim.dtype)
+    if key not in _LQR_DESIGNS:
+        _LQR_DESIGNS[key] = make_controller(name, env)
+    return copy.deepcopy(_LQR_DESIGNS[key])
+
+
 def _check_policy_task(path: Path, trained_on: str | None, spec: TaskSpec) -> None:
     """A policy flies its own task or one derived from it (a subclass keeps its parent's MDP)."""
     if trained_on is None or trained_on == spec.name:
@@ -67,4 +86,4 @@ def _check_policy_task(path: Path, trained_on: str | None, spec: TaskSpec) -> No
         raise ValueError(f"{path}: a policy of task {trained_on!r} does not fly task {spec.name!r}")
 
 
-__all__ = ["CONTROLLERS", "TrimHold", "baseline_names", "make_controller"]
+__all__ = ["CONTROLLERS", "TrimHold", "baseline_names", "make_controller", "reused_controller"]

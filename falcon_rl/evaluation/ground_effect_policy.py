@@ -42,7 +42,7 @@ from ..envs.tasks.base import TERMINATION_REASONS
 from ..physics import state as S
 from ..physics.params import build_params
 from ..physics.rotations import rotation_matrix
-from .controllers import make_controller
+from .controllers import reused_controller
 from .ground_effect_table import H_OVER_B, ground_effect_table
 
 ControllerFactory = Callable[[FixedWingEnv], TensorDictModuleBase]
@@ -280,7 +280,7 @@ def ground_effect_policy_column(airframe: str, controller: str, factory: Control
     """Thrust a controller needs to hold each h/b band with the ground-effect correction on and off.
 
     ``controller`` names the controller (a label; with ``factory`` None it is built by
-    :func:`~.controllers.make_controller`: "lqr", "mppi", "trim", "ppo" or a policy file).
+    :func:`~.controllers.reused_controller`: "lqr" (designed once), "mppi", "trim", "ppo" or a policy file).
     ``factory(env) -> policy`` builds it for each arm's env (the arm's ground-effect mode included).
     ``episodes`` parallel envs per arm fly ``seconds`` (s) at the paper's 10 ms control step; the
     statistics use [``settle_seconds``, ``seconds``] of the episodes that survived. ``ground_effect``
@@ -297,7 +297,7 @@ def ground_effect_policy_column(airframe: str, controller: str, factory: Control
     wing_offset = trim_wing_offset(airframe)
     if factory is None:
         def factory(env: FixedWingEnv) -> TensorDictModuleBase:
-            return make_controller(controller, env)
+            return reused_controller(controller, env)
     span = float(load_airframe(airframe).geometry.span)
     airborne = [i for i, h in enumerate(heights) if h > 0.0 and h - wing_offset > 0.0]
     trim_delta, theory = [math.nan] * len(bands), [math.nan] * len(bands)

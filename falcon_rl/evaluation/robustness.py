@@ -50,7 +50,7 @@ from ..transforms.presets import (
     SEVERE_TURBULENCE_RATIO,
     TURBULENCE_RATIO,
 )
-from .controllers import make_controller
+from .controllers import reused_controller
 from .metrics import first_episode_mask, survival
 from .protocols import PROTOCOL_DECIMATION
 
@@ -274,7 +274,7 @@ def robustness_grid(airframe: str, controller: str, factory: ControllerFactory |
     (family, level) of ``families`` x ``levels`` (see the module docstring for the units).
 
     ``factory(env) -> policy`` builds the controller for each cell's env (default:
-    ``make_controller(controller, env)``: "lqr", "mppi", "trim", "ppo" (the shipped policy) or a
+    ``reused_controller(controller, env)``: "lqr" (designed once), "mppi", "trim", "ppo" (shipped) or a
     policy file). ``maneuvers``: the command streams each cell flies, ``episodes`` envs each (the
     paper: the four maneuvers, one episode each); "random" flies random command streams. ``seconds``:
     the first ``seconds`` s of each stream (None: the whole maneuver; 30 s of a random stream). Every
@@ -299,7 +299,7 @@ def robustness_grid(airframe: str, controller: str, factory: ControllerFactory |
         raise ValueError(f"seconds must be a positive number of seconds or None, got {seconds!r}")
     if factory is None:
         def factory(env: FixedWingEnv) -> TensorDictModuleBase:
-            return make_controller(controller, env)
+            return reused_controller(controller, env)
 
     todo = [(f, lv) for f in families for lv in levels]
     cells: dict[tuple[str, str], RobustnessCell] = {}

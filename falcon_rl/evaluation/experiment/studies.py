@@ -173,10 +173,10 @@ def factory(cell: Cell, source: str) -> Any:
     """The controller factory ``env -> policy`` of ``cell``; MPPI's sampler seeded per draw."""
     import torch
 
-    from ..controllers import make_controller
+    from ..controllers import reused_controller
 
     def build(env: Any) -> Any:
-        policy = make_controller(source, env)
+        policy = reused_controller(source, env)
         if cell.controller == "mppi" and isinstance(getattr(policy, "generator", None), torch.Generator):
             policy.generator.manual_seed(1000 * cell.draw + cell.seed)
         return policy
