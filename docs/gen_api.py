@@ -18,8 +18,8 @@ PACKAGE = "falcon_rl"
 
 #: Page order, by the layers of the package (bottom to top); a subpackage not named here follows them.
 ORDER: tuple[str, ...] = ("airframe", "physics", "recording", "envs", "envs.tasks", "transforms", "baselines",
-                          "policies", "validation", "derive", "recipes", "evaluation", "viz", "bridges",
-                          "modules")
+                          "policies", "validation", "derive", "recipes", "evaluation", "experiment", "viz",
+                          "bridges", "modules")
 
 #: Not in the API reference: the CLI subcommands have the CLI reference page; ``objectives`` is the
 #: deprecated alias of ``recipes`` (importing it warns).

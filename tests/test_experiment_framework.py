@@ -15,9 +15,9 @@ import pytest
 import torch
 from scipy import stats
 
-from falcon_rl.evaluation.experiment import cells as cells_module
-from falcon_rl.evaluation.experiment.cache import CACHE_FORMAT, CellCache
-from falcon_rl.evaluation.experiment.cells import (
+from falcon_rl.experiment import cells as cells_module
+from falcon_rl.experiment.cache import CACHE_FORMAT, CellCache
+from falcon_rl.experiment.cells import (
     CELL_FUNCTIONS,
     Cell,
     code_version,
@@ -25,9 +25,9 @@ from falcon_rl.evaluation.experiment.cells import (
     register_cell_function,
     run_cell,
 )
-from falcon_rl.evaluation.experiment.runners import CellsFailedError, run_cells
-from falcon_rl.evaluation.experiment.statistics import Aggregate, aggregate, group_cells
-from falcon_rl.evaluation.experiment.tables import (
+from falcon_rl.experiment.runners import CellsFailedError, run_cells
+from falcon_rl.experiment.statistics import Aggregate, aggregate, group_cells
+from falcon_rl.experiment.tables import (
     RESULTS_FORMAT,
     Column,
     Row,

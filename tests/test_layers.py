@@ -33,6 +33,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
       "falcon_rl.validation", "falcon_rl.derive")),
     ("recipes / evaluation / bench", ("falcon_rl.recipes", "falcon_rl.objectives", "falcon_rl.evaluation",
                                       "falcon_rl.bench")),
+    ("experiment", ("falcon_rl.experiment",)),
     ("viz / bridges", ("falcon_rl.viz", "falcon_rl.bridges")),
     ("commands", ("falcon_rl.commands", "falcon_rl.cli", ROOT)),
 )

@@ -1,5 +1,5 @@
 """``falcon-rl experiment altitude|maneuvers|ground-effect|robustness|all``: the paper's studies as one
-sweep of cached cells (``falcon_rl.evaluation.experiment``), then per study a folder with report.md,
+sweep of cached cells (``falcon_rl.experiment``), then per study a folder with report.md,
 tables.tex (the paper's layout), results.json and the figures."""
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from ._common import UsageError, comma_list, output_dir
 
 def scale_of(args: argparse.Namespace) -> Any:
     """The scale of ``--scale`` with ``--seeds``, ``--episodes`` and ``--seconds`` applied."""
-    from ..evaluation.experiment.studies import SCALES
+    from ..experiment.studies import SCALES
 
     scale = SCALES[args.scale]
     if args.seeds is not None:
@@ -31,8 +31,8 @@ def scale_of(args: argparse.Namespace) -> Any:
 def study_cells(args: argparse.Namespace, studies: list[str], out: Path) -> dict[str, list]:
     """{study: its cells} of the flags (UsageError for an unknown airframe or controller)."""
     from ..airframe import load_airframe
-    from ..evaluation.experiment.studies import AIRFRAMES, CONTROLLERS, STUDY_CONTROLLERS
-    from ..evaluation.experiment.studies import study_cells as cells_of
+    from ..experiment.studies import AIRFRAMES, CONTROLLERS, STUDY_CONTROLLERS
+    from ..experiment.studies import study_cells as cells_of
 
     airframes = tuple(load_airframe(a).name for a in comma_list(args.airframes or ",".join(AIRFRAMES),
                                                                   "--airframes"))
@@ -46,7 +46,7 @@ def study_cells(args: argparse.Namespace, studies: list[str], out: Path) -> dict
 
 def run_studies(args: argparse.Namespace, studies: list[str]) -> tuple[dict[str, Any], str]:
     """Run the sweep (cached cells skipped), write every study's outputs; (document, text)."""
-    from ..evaluation.experiment import CellCache, CellsFailedError, run_cells
+    from ..experiment import CellCache, CellsFailedError, run_cells
 
     out = output_dir(args.out)
     per_study = study_cells(args, studies, out)
@@ -72,7 +72,7 @@ def run_studies(args: argparse.Namespace, studies: list[str]) -> tuple[dict[str,
 def write_study(study: str, cells: list, results: dict, failures: dict, folder: Path,
                 args: argparse.Namespace) -> tuple[dict[str, Any], str]:
     """report.md, tables.tex, results.json and the figures of one study; (summary document, text)."""
-    from ..evaluation.experiment import (
+    from ..experiment import (
         experiment_document,
         group_cells,
         latex_table,
@@ -80,7 +80,7 @@ def write_study(study: str, cells: list, results: dict, failures: dict, folder: 
         rows_from_groups,
         write_results,
     )
-    from ..evaluation.experiment.study_tables import STUDY_TABLES
+    from ..experiment.study_tables import STUDY_TABLES
 
     folder.mkdir(parents=True, exist_ok=True)
     groups = group_cells(cells, results)

@@ -8,7 +8,7 @@
 
 The studies (altitude, maneuvers, ground-effect, robustness; ``all``) run as one sweep of cells, one
 per study x airframe x controller x training seed x MPPI draw, cached under ``--out``/cells: a killed
-sweep resumes where it stopped and a changed cell reruns alone (``falcon_rl.evaluation.experiment``).
+sweep resumes where it stopped and a changed cell reruns alone (``falcon_rl.experiment``).
 Each study writes ``--out``/<study>/report.md, tables.tex (the paper's layout), results.json and its
 figures. ``--scale quick`` is a smoke run with shipped policies and one seed; ``paper`` the paper's
 sizes. Learned rows without a shipped policy are trained with ``--train`` and otherwise left empty.

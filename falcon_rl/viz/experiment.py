@@ -1,4 +1,4 @@
-"""The experiment's figures, drawn from the cells' cached results (``falcon_rl.evaluation.experiment``):
+"""The experiment's figures, drawn from the cells' cached results (``falcon_rl.experiment``):
 the altitude study's grid, the faceted bank tracking of the maneuvers study and its 3D track renders.
 Each takes {(airframe, controller): result} of one replicate (the first seed and draw), where a result
 is a cell's cached document with its ``traces``."""

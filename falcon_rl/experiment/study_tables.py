@@ -5,10 +5,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ...envs.maneuvers import MANEUVERS
-from ...transforms.presets import GRID
-from ..ground_effect_table import H_OVER_B
-from ..robustness import FAMILIES
+from ..envs.maneuvers import MANEUVERS
+from ..evaluation.ground_effect_table import H_OVER_B
+from ..evaluation.robustness import FAMILIES
+from ..transforms.presets import GRID
 from .tables import Column
 
 _TITLES = {"circle": "Circle", "figure8": "Fig.-8", "helix": "Helix", "s_turn": "S-turn"}

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ...envs.maneuvers import MANEUVERS
+from ..envs.maneuvers import MANEUVERS
 from .cells import Cell, register_cell_function
 
 STUDIES: tuple[str, ...] = ("altitude", "maneuvers", "ground-effect", "robustness")
@@ -122,7 +122,7 @@ def policy_source(cell: Cell) -> str:
     docstring); NoPolicyError when a learned cell has none."""
     if cell.controller not in LEARNED:
         return cell.controller
-    from ...policies import shipped_policy
+    from ..policies import shipped_policy
 
     params = cell.param_dict
     if cell.seed == 0:
@@ -160,7 +160,7 @@ def replace_train(cell: Cell, train: bool) -> Cell:
 
 def _train(cell: Cell, folder: Path) -> str:
     """Train the cell's learned policy with its recipe into ``folder`` (resumable); its policy file."""
-    from ...recipes import algorithm
+    from ..recipes import algorithm
 
     module = algorithm(cell.controller)
     config = module.make_config(cell.task, airframe=cell.airframe, seed=cell.seed,
@@ -173,7 +173,7 @@ def factory(cell: Cell, source: str) -> Any:
     """The controller factory ``env -> policy`` of ``cell``; MPPI's sampler seeded per draw."""
     import torch
 
-    from ..controllers import reused_controller
+    from ..evaluation.controllers import reused_controller
 
     def build(env: Any) -> Any:
         policy = reused_controller(source, env)
@@ -238,7 +238,7 @@ def maneuver_traces(result: Any) -> dict[str, Any]:
 
 def altitude_cell(cell: Cell) -> Any:
     """One altitude-protocol row (summary: survival, acquisition, rmse_m, ...) with the figure's traces."""
-    from ..protocols import altitude_protocol
+    from ..evaluation.protocols import altitude_protocol
 
     try:
         source = policy_source(cell)
@@ -254,7 +254,7 @@ def altitude_cell(cell: Cell) -> Any:
 def maneuvers_cell(cell: Cell) -> Any:
     """One attitude-protocol row over the four maneuvers (summary "<maneuver>/<metric>") with the
     figures' traces."""
-    from ..protocols import attitude_protocol
+    from ..evaluation.protocols import attitude_protocol
 
     try:
         source = policy_source(cell)
@@ -273,7 +273,7 @@ def ground_effect_cell(cell: Cell) -> dict[str, Any]:
     """The policy column of one airframe and controller: per h/b band (summary "<h/b>/<metric>") the
     thrust with and without the correction (N), Delta T_pi and the trim table's Delta T and theory (%),
     the settled RMSE with the correction on (m) and whether the band was held (1/0); the rows whole."""
-    from ..ground_effect_policy import ground_effect_policy_column
+    from ..evaluation.ground_effect_policy import ground_effect_policy_column
 
     try:
         source = policy_source(cell)
@@ -301,7 +301,7 @@ def robustness_cell(cell: Cell) -> dict[str, Any]:
     """The robustness grid of one airframe and controller over the four maneuvers (each cut to the
     cell's seconds): per (family, level) (summary "<family>/<level>/<metric>") survival, bank RMSE
     (deg), climb-rate and airspeed RMSE (m/s), all from the true state; the rows whole."""
-    from ..robustness import robustness_grid
+    from ..evaluation.robustness import robustness_grid
 
     try:
         source = policy_source(cell)
