@@ -61,8 +61,8 @@ class FlightRecorder(Transform):
 
     def _step(self, tensordict: TensorDictBase, next_tensordict: TensorDictBase) -> TensorDictBase:
         self._steps += 1
-        if self._steps % self.every:
-            return next_tensordict
+        if self._steps % self.every or (self._log is not None and self._log.full):
+            return next_tensordict  # not a recorded step, or max_frames reached: nothing gathered
         extras = task_extras(next_tensordict.get("task", None))
         for key in ("reward", "done", "terminated", "truncated", "termination_reason"):
             if key in next_tensordict:
