@@ -37,7 +37,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import torch
 from tensordict import TensorDict, TensorDictBase
@@ -50,10 +50,10 @@ from ..physics.engine import fresh_seed, make_generator
 from ..physics.params import RANDOMIZABLE_PARAMETERS
 from ..physics.switches import ModelSwitches
 from ..physics.wind import TurbulenceConfig
-from ..transforms.action_check import check_action
+from ..transforms.action_check import check_action, refuse_bad_action
 from ..transforms.presets import nominal_height, resolve_turbulence
 from .layout import column, simulator_layout
-from .tasks import TERMINATION_CODE, TERMINATION_REASONS, TaskConfig, task_spec
+from .tasks import TERMINATION_CODE, TERMINATION_REASONS, Task, TaskConfig, task_spec
 
 #: Fields of ``Simulator.state`` published under ("state", ...).
 STATE_KEYS: tuple[str, ...] = (
@@ -64,6 +64,9 @@ STATE_KEYS: tuple[str, ...] = (
 #: Keys of a lean env (``lean=True``): what a policy and a replay buffer need.
 LEAN_KEYS: tuple[str, ...] = ("observation", "termination_reason")
 NON_FINITE = TERMINATION_CODE["non_finite"]
+
+if TYPE_CHECKING:
+    from .tasks.warp_env_step import FusedEnvStep
 
 #: Per-env ``ModelParams`` fields that ``set_physical_parameters`` may write: the rows the physics
 #: parameter table flags randomisable (``physics.params.RANDOMIZABLE_PARAMETERS``), written through
@@ -296,12 +299,58 @@ class FixedWingEnv(EnvBase):
             out = self._zero_non_finite(out, step.non_finite)
         return out
 
-    def step_tensors(self, action: object, with_state: bool = True) -> StepTensors:
+    def step_tensors(self, action: object, with_state: bool = True, copy: bool = True) -> StepTensors:
         """One env step without TensorDicts in or out (the core of ``step``, for the Gymnasium paths):
         ``action`` [N, A] checked (see "Actions" in the module docstring); the observation and reward
         it returns are finite (zeroed in "non_finite" rows), the state is the simulator's as it is.
         ``with_state=False`` lets a task with a fused step skip building the state (``state`` is then
-        None, and the finiteness check reads the simulator's buffers instead)."""
+        None, and the finiteness check reads the simulator's buffers instead). On the warp backend
+        with a fused task step the whole step is one launch (``tasks.warp_env_step``); ``copy=False``
+        then returns its buffers, which the next step overwrites."""
+        stepper = self.env_stepper()
+        if stepper is None:
+            return self._step_glued(action, with_state)
+        refuse_bad_action(action, self.config.num_envs, self.task.action_dim)
+        assert isinstance(action, torch.Tensor)
+        observation, reward, reason, truncated, non_finite = stepper(action)
+        state = self.sim.state if with_state and not self.config.lean else None
+        if copy or state is not None:
+            observation, reward, reason = observation.clone(), reward.clone(), reason.clone()
+            truncated, non_finite = truncated.clone(), non_finite.clone()
+        if state is not None:  # the derived state is checked too, as on the other paths
+            extra = ~_finite_rows(state, observation, reward)
+            non_finite |= extra
+            reason.masked_fill_(extra, NON_FINITE)
+            truncated &= ~extra
+            observation.masked_fill_(extra[:, None] & ~torch.isfinite(observation), 0.0)
+            reward.masked_fill_(extra & ~torch.isfinite(reward), 0.0)
+        return StepTensors(observation, reward, reason, truncated, non_finite, state)
+
+    def env_stepper(self) -> FusedEnvStep | None:
+        """The one-launch env step (``tasks.warp_env_step.FusedEnvStep``) when it applies: the warp
+        backend, ``fused`` on, a task with a fused step whose ``command`` is the base one; None
+        otherwise (the step then runs the engine, the task and the checks one after the other)."""
+        if "_env_step" not in self.__dict__:
+            task = self.task
+            fused = (self.config.fused and self.sim.backend == "warp" and type(task).command is Task.command)
+            task_step = task.fused_stepper() if fused else None
+            if task_step is not None:
+                from .tasks.warp_env_step import ENV_STEP_KERNELS, FusedEnvStep
+
+                if task_step.kernel_func not in ENV_STEP_KERNELS:
+                    task_step = None
+            self.__dict__["_env_step"] = None if task_step is None else FusedEnvStep(self, task_step)
+        return self.__dict__["_env_step"]
+
+    def __getstate__(self) -> dict[str, Any]:
+        """The plain state: the one-launch step's binding is made again after unpickling."""
+        state = self.__dict__.copy()
+        state.pop("_env_step", None)
+        return state
+
+    def _step_glued(self, action: object, with_state: bool) -> StepTensors:
+        """:meth:`step_tensors` as separate stages: the action check, the engine's step, the task's
+        (fused or torch) step, the non-finite guard and the counters."""
         n = self.config.num_envs
         action, nan_action = check_action(action, n, self.task.action_dim, self.sim.dtype, self.device)
         command = self.task.command(action)

@@ -199,7 +199,14 @@ class CoreAircraftEnv(gymnasium.Env):
         shape = np.shape(action)
         if shape != (self._action_dim,):
             raise ValueError(f"action must have shape [{self._action_dim}], got {list(shape)}")
-        if self.core is not None:
+        fast = None if self.core is None else self.core.numpy_step
+        if fast is not None:
+            array = np.asarray(action)
+            if array.dtype.kind != "f":
+                raise ValueError(f"action must be a real floating array of shape [1, {self._action_dim}], "
+                                 f"got dtype {array.dtype}")
+            out = fast.step(array)
+        elif self.core is not None:
             step = self.core.step(action_tensor(np.asarray(action)[None], 1, self._action_dim))
             out = (step.observation[0], step.reward[0].item(), bool(step.terminated[0]),
                    bool(step.truncated[0]), first_row(step.info))

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import functools
 import math
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 import torch
@@ -76,6 +76,8 @@ class TensorCore:
         #: None and [] before the first reset.
         self.current: np.ndarray | None = None
         self.current_entries: list[np.ndarray] = []
+        #: The single env's NumPy step (:class:`NumpyStep`) where it runs, else None.
+        self.numpy_step = NumpyStep.build(env) if self.num_envs == 1 and not self.pack else None
 
     # ------------------------------------------------------------------ API
     def reset(self, mask: np.ndarray | None = None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
@@ -166,6 +168,57 @@ class TensorCore:
                for key, value in zip(self.keys, entries, strict=True)}
         out["termination_reason"] = reason
         return out
+
+
+class NumpyStep:
+    """One aircraft's step on NumPy views of the env's one-launch step (CPU, warp backend, a fused task
+    step; ``FixedWingEnv.env_stepper``): the action is written into the step's input buffer, one launch
+    runs the whole step, and the outputs are read from its buffers and the task's
+    (``Task.info_views``): no torch operation, no TensorDict. It gives what :meth:`TensorCore.step`
+    gives for the same env, number for number (tests/test_gym.py)."""
+
+    def __init__(self, stepper: Any, entries: dict[str, np.ndarray]):
+        self.stepper = stepper
+        self.views: dict[str, np.ndarray] = stepper.numpy_views()
+        #: {entry: (its [1] or [1, k] view, scalar?)} of the task's info, in ``info()`` order.
+        self.entries = {key: (view, view[0].size == 1) for key, view in entries.items()}
+
+    @classmethod
+    def build(cls, env: FixedWingEnv) -> NumpyStep | None:
+        """The NumPy step of a one-env CPU ``env``, or None where the env steps otherwise (another backend,
+        no fused task step, or task entries that are computed rather than stored)."""
+        stepper = env.env_stepper()
+        views = {} if env.config.lean else env.task.info_views()
+        if stepper is None or views is None or env.device.type != "cpu":
+            return None
+        return cls(stepper, {key: value.numpy() for key, value in views.items()})
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        """(observation [D] float32, reward, terminated, truncated, info) of one step with ``action``
+        [A], a real floating array of that shape (checked by the caller; NaN and +-inf follow the action
+        contract inside the step)."""
+        views = self.views
+        if action.dtype == np.float32:
+            views["action"][0] = action
+        else:
+            with np.errstate(over="ignore"):  # a huge float64 becomes inf in float32, then clamped
+                views["action"][0] = action
+        self.stepper.launch()
+        reason = int(views["reason"][0])
+        info: dict[str, Any] = {key: view[0].item() if scalar else view[0].copy()
+                                for key, (view, scalar) in self.entries.items()}
+        if views["non_finite"][0]:
+            info = {key: _finite_or_zero(value) for key, value in info.items()}
+        info["termination_reason"] = reason
+        return (views["observation"][0].copy(), views["reward"][0].item(), reason > 0,
+                bool(views["truncated"][0]), info)
+
+
+def _finite_or_zero(value: Any) -> Any:
+    """``value`` (a float or a float array) with NaN and +-inf replaced by 0."""
+    if isinstance(value, np.ndarray):
+        return np.where(np.isfinite(value), value, 0).astype(value.dtype)
+    return value if math.isfinite(value) else 0.0
 
 
 @functools.cache

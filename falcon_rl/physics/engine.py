@@ -2,7 +2,7 @@
 
     engine = engine_class("warp")(setup)       # backends.py; setup: an EngineSetup (params, dt, ...)
     engine.reset(initial_x, initial_command, mask)      # masked write of [N, S] and [N, 4]
-    engine.step(command, substeps)             # command [N, 4] in [-1, 1], held over the sub-steps
+    engine.step(command, substeps, stop_at_ground)   # command [N, 4] in [-1, 1], held over the sub-steps
     engine.derived()                           # [N, DERIVED_WIDTH], columns of derived.DERIVED_FIELDS
 
 Buffers (allocated by :class:`Engine`, updated in place, never replaced):
@@ -13,6 +13,7 @@ Buffers (allocated by :class:`Engine`, updated in place, never replaced):
     wind_ned            [N, 3]  m/s, steady wind
     gust_velocity_body  [N, 3]  m/s, Dryden gusts acting over the current step
     gust_rate_body      [N, 3]  rad/s
+    crashed             [N]     bool, envs stopped at the ground since their reset (``stop_at_ground``)
     params              ModelParams, per-env tensors [N, ...] (domain randomisation writes them)
     turbulence          the Dryden filter state, or None when turbulence is off
     generator           this engine's torch generator (noise of the torch Dryden filters), a
@@ -42,7 +43,7 @@ import torch
 from ..airframe import Airframe
 from .dynamics import AirInputs
 from .params import ModelParams
-from .state import NUM_CONTROLS, StateLayout
+from .state import ANGULAR_RATE, DOWN_INDEX, NUM_CONTROLS, VELOCITY, StateLayout
 from .wind import Turbulence, TurbulenceConfig
 
 
@@ -135,6 +136,9 @@ class Engine(ABC):
         self.wind_ned = torch.zeros(n, 3, **kw)
         self.gust_velocity_body = torch.zeros(n, 3, **kw)
         self.gust_rate_body = torch.zeros(n, 3, **kw)
+        self.crashed = torch.zeros(n, dtype=torch.bool, device=setup.device)
+        #: [N, S] the state before a step that applies the crash state (allocated on first use).
+        self._before: torch.Tensor | None = None
         seed = fresh_seed() if setup.seed is None else int(setup.seed)
         self.generator = make_generator(setup.device, seed)
         self.turbulence: Turbulence | None = (
@@ -147,16 +151,39 @@ class Engine(ABC):
         return AirInputs(self.wind_ned, self.gust_velocity_body, self.gust_rate_body)
 
     # ------------------------------------------------------------------ the contract
-    def step(self, command: torch.Tensor, substeps: int = 1) -> None:
+    def step(self, command: torch.Tensor, substeps: int = 1, stop_at_ground: bool = False) -> None:
         """Advance every env by ``substeps`` steps of dt under ``command`` [N, 4] (clipped to
-        [-1, 1], detached: the step is not differentiable), state and clock in place."""
+        [-1, 1], detached: the step is not differentiable), state and clock in place.
+
+        ``stop_at_ground`` (the crash state): envs already ``crashed`` keep their state (clock, gusts
+        and Dryden filters advance); an env whose CG is below the ground after the sub-steps stops on
+        it (height 0, zero velocity and body rates, attitude and actuators as integrated) and is
+        flagged in ``crashed`` until its reset."""
         torch.clamp(command.detach(), -1.0, 1.0, out=self.command)
+        if not stop_at_ground:
+            self.advance(int(substeps))
+            return
+        if self._before is None:
+            self._before = torch.empty_like(self.x)
+        self._before.copy_(self.x)
         self.advance(int(substeps))
+        self.stop_crashed(self._before)
 
     @abstractmethod
     def advance(self, substeps: int) -> None:
         """``substeps`` steps of dt under ``self.command``: Dryden gusts (when on), integration,
         projection and the clock, in place."""
+
+    def stop_crashed(self, before: torch.Tensor) -> None:
+        """The crash state in torch, after the sub-steps: envs already ``crashed`` get ``before`` [N, S]
+        (the state before the step) back; envs whose CG went below the ground stop on it and are
+        flagged. No host sync, no [N, S] allocation (``before`` is overwritten)."""
+        x = self.x
+        below = x[:, DOWN_INDEX] > 0.0
+        x.copy_(torch.where(self.crashed[:, None], before, x, out=before))
+        x[:, DOWN_INDEX].masked_fill_(below, 0.0)
+        x[:, VELOCITY.start:ANGULAR_RATE.stop].masked_fill_(below[:, None], 0.0)
+        self.crashed |= below
 
     def reset(self, initial_x: torch.Tensor, initial_command: torch.Tensor,
               mask: torch.Tensor | None = None) -> None:
@@ -168,12 +195,14 @@ class Engine(ABC):
             self.time.zero_()
             self.gust_velocity_body.zero_()
             self.gust_rate_body.zero_()
+            self.crashed.zero_()
         else:
             self.x[mask] = initial_x[mask]
             self.command[mask] = initial_command[mask]
             self.time.masked_fill_(mask, 0.0)
             self.gust_velocity_body.masked_fill_(mask[:, None], 0.0)
             self.gust_rate_body.masked_fill_(mask[:, None], 0.0)
+            self.crashed.masked_fill_(mask, False)
         if self.turbulence is not None:
             self.turbulence.reset(mask)
         self.after_reset()

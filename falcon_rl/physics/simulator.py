@@ -126,10 +126,6 @@ class Simulator:
         if wind is not None:
             self.wind_ned[:] = torch.as_tensor(wind, dtype=dtype, device=device)
         self.stop_at_ground = bool(stop_at_ground)
-        #: [N] bool: envs stopped at the ground since their last reset (see ``stop_at_ground``).
-        self.crashed = torch.zeros(num_envs, dtype=torch.bool, device=device)
-        #: [N, S] the state before the current step (crash state; preallocated, no copy allocated per step)
-        self._before = torch.empty_like(self.engine.x)
         self._default: torch.Tensor | None = None
         self._default_command: torch.Tensor | None = None
         self.reset()
@@ -144,6 +140,11 @@ class Simulator:
     def command(self) -> torch.Tensor:
         """[N, 4] command held over the current step."""
         return self.engine.command
+
+    @property
+    def crashed(self) -> torch.Tensor:
+        """[N] bool: envs stopped at the ground since their last reset (see ``stop_at_ground``)."""
+        return self.engine.crashed
 
     @property
     def time(self) -> torch.Tensor:
@@ -261,10 +262,6 @@ class Simulator:
         self._check_initial(new_x, new_cmd, mask)
         new_x = project(hold_command(new_x, new_cmd, self.params), self.params)
         self.engine.reset(new_x, new_cmd, mask)
-        if mask is None:
-            self.crashed.zero_()
-        else:
-            self.crashed.masked_fill_(mask, False)
         return self.state
 
     def _check_initial(self, x: torch.Tensor, command: torch.Tensor, mask: torch.Tensor | None) -> None:
@@ -360,24 +357,7 @@ class Simulator:
                 raise ValueError(f"commands contain NaN or Inf for envs {bad[:10]}")
             if not (isinstance(substeps, int) and substeps >= 1):
                 raise ValueError(f"substeps must be an int >= 1, got {substeps!r}")
-        if self.stop_at_ground:
-            self._before.copy_(self.engine.x)
-            self.engine.step(commands, substeps)
-            self._stop_at_ground(self._before)
-        else:
-            self.engine.step(commands, substeps)
-
-    def _stop_at_ground(self, before: torch.Tensor) -> None:
-        """Crash state: envs already crashed keep ``before`` [N, S] (they stay where they stopped);
-        envs whose CG went below the ground this step stop on it (height 0, zero velocity and body
-        rates, attitude and actuators as integrated) and are flagged in ``crashed``. No host sync, no
-        [N, S] allocation (``before`` is overwritten)."""
-        x = self.engine.x
-        below = S.height(x) < 0.0
-        x.copy_(torch.where(self.crashed[:, None], before, x, out=before))
-        x[:, S.DOWN_INDEX].masked_fill_(below, 0.0)
-        x[:, S.VELOCITY.start:S.ANGULAR_RATE.stop].masked_fill_(below[:, None], 0.0)
-        self.crashed |= below
+        self.engine.step(commands, substeps, self.stop_at_ground)
 
     def reseed(self, seed: int) -> None:
         """Reseed the generator and the turbulence noise streams."""

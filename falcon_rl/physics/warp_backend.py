@@ -102,7 +102,8 @@ class WarpEngine(Engine):
     #: left out of a pickle and bound again from the plain state on load.
     _RUNTIME = ("_wp", "_kernels", "device", "_torch_device", "_is_cuda", "_key", "_launches",
                 "_evaluate_launches", "_substeps", "_evaluation", "_stream", "threads", "slices",
-                "_params_object", "_params", "_params_ptrs", "_turb_placeholders", "_turb_object")
+                "_params_object", "_params", "_params_ptrs", "_turb_placeholders", "_turb_object",
+                "_stop", "generation", "_views")
 
     @classmethod
     def placement(cls, num_envs: int, device: torch.device, dtype: torch.dtype
@@ -137,6 +138,10 @@ class WarpEngine(Engine):
         self._launches: list[Any] = []
         self._evaluate_launches: list[Any] = []
         self._substeps = 1
+        self._stop = False
+        #: Bumped by every :meth:`rebind`: a kernel bound to :meth:`bind_views` binds again when it moves.
+        self.generation = 0
+        self._views: tuple[Any, Any, Any] | None = None
         self._evaluation = torch.empty(self.num_envs, DERIVED_WIDTH, device=setup.device,
                                        dtype=torch.float32)
         self._stream: Any = None
@@ -160,8 +165,9 @@ class WarpEngine(Engine):
                      turb.external_noise))
         return (id(self.params), self.dt, self.integrator, turb_key)
 
-    def _turbulence_inputs(self) -> list[Any]:
-        """Views of the Dryden state and the mode code (placeholders and mode 0 when off)."""
+    def _turbulence_inputs(self) -> tuple[list[Any], int]:
+        """(views of the Dryden state: filter, W20, noise, rng; the mode code): placeholders and mode 0
+        when off."""
         wp, k = self._wp, self._kernels
         turb = self.turbulence
         if turb is None:
@@ -174,7 +180,26 @@ class WarpEngine(Engine):
             self._turb_object = turb  # held so that its id cannot be reused
             tensors = (turb.filter, turb.w20, turb.noise, turb.rng)
             mode = k.TURBULENCE_EXTERNAL if turb.external_noise else k.TURBULENCE_RANDOM
-        return [*(wp.from_torch(t) for t in tensors), mode]
+        return [wp.from_torch(t) for t in tensors], mode
+
+    def bind_views(self) -> tuple[Any, Any, Any]:
+        """(``EngineViews`` of the buffers, ``WarpParams`` of the parameters, ``StepSettings``): what a
+        kernel that advances this engine's envs (:func:`~falcon_rl.physics.warp_kernels.advance_env`)
+        takes; valid until the next :meth:`rebind`."""
+        wp, k = self._wp, self._kernels
+        views = k.EngineViews()
+        views.x = wp.from_torch(self.x)
+        views.time = wp.from_torch(self.time)
+        views.command = wp.from_torch(self.command, dtype=wp.vec4)
+        for name in ("wind_ned", "gust_velocity_body", "gust_rate_body"):
+            setattr(views, name, wp.from_torch(getattr(self, name), dtype=wp.vec3))
+        views.crashed = wp.from_torch(self.crashed, dtype=wp.bool)
+        turbulence, mode = self._turbulence_inputs()
+        views.turb_filter, views.turb_w20, views.turb_noise, views.turb_rng = turbulence
+        settings = k.StepSettings()
+        settings.dt, settings.integrator = self.dt, k.INTEGRATOR_CODES[self.integrator]
+        settings.turb_mode = mode
+        return views, self._params, settings
 
     def rebind(self) -> None:
         """Bind fresh views of the buffers and parameters and record the launches again."""
@@ -182,18 +207,13 @@ class WarpEngine(Engine):
         self._params_object = self.params  # held so that its id cannot be reused
         self._params = bind_warp_params(self.params)
         self._params_ptrs = [t.data_ptr() for t in vars(self.params).values()]
-        air = [wp.from_torch(self.wind_ned, dtype=wp.vec3),
-               wp.from_torch(self.gust_velocity_body, dtype=wp.vec3),
-               wp.from_torch(self.gust_rate_body, dtype=wp.vec3)]
-        x = wp.from_torch(self.x)
-        step_inputs = [x, wp.from_torch(self.time), wp.from_torch(self.command, dtype=wp.vec4), *air,
-                       self._params, self.dt, self._kernels.INTEGRATOR_CODES[self.integrator],
-                       *self._turbulence_inputs()]
+        views, params, settings = self._views = self.bind_views()
         self._launches = [wp.launch(self._kernels.step_kernel, dim=count,
-                                    inputs=[*step_inputs, self._substeps, offset],
+                                    inputs=[views, params, settings, self._substeps, int(self._stop), offset],
                                     device=self.device, record_cmd=True)
                           for offset, count in self.slices]
-        evaluate_inputs = [x, *air, self._params, wp.from_torch(self._evaluation)]
+        evaluate_inputs = [views.x, views.wind_ned, views.gust_velocity_body, views.gust_rate_body, params,
+                           wp.from_torch(self._evaluation)]
         self._evaluate_launches = [wp.launch(self._kernels.evaluate_kernel, dim=count,
                                              inputs=[*evaluate_inputs, offset], device=self.device,
                                              record_cmd=True)
@@ -201,25 +221,41 @@ class WarpEngine(Engine):
         if self._is_cuda:
             self._stream = wp.stream_from_torch(self._torch_device)
         self._key = self._binding_key()
+        self.generation += 1
 
-    def advance(self, substeps: int) -> None:
-        """``substeps`` steps of x and time in place: one kernel launch per CPU slice."""
+    def check_binding(self) -> None:
+        """Bind again when the parameters object, dt, the integrator or the turbulence changed."""
         if self._binding_key() != self._key:
             self.rebind()
-        if substeps != self._substeps:
+
+    def step(self, command: torch.Tensor, substeps: int = 1, stop_at_ground: bool = False) -> None:
+        """``Engine.step`` with the crash state inside the kernel (no torch work after the launch)."""
+        torch.clamp(command.detach(), -1.0, 1.0, out=self.command)
+        self.advance(int(substeps), bool(stop_at_ground))
+
+    def advance(self, substeps: int, stop_at_ground: bool = False) -> None:
+        """``substeps`` steps of x and time in place, then the crash state with ``stop_at_ground``
+        (``Engine.step``): one kernel launch per CPU slice."""
+        self.check_binding()
+        if substeps != self._substeps or stop_at_ground != self._stop:
             for launch in self._launches:
                 launch.set_param_by_name("substeps", substeps)
-            self._substeps = substeps
+                launch.set_param_by_name("stop_at_ground", int(stop_at_ground))
+            self._substeps, self._stop = substeps, stop_at_ground
+        self.bump_turbulence_counter(substeps)
+        self.run(self._launches)
+
+    def bump_turbulence_counter(self, substeps: int) -> None:
+        """Advance the step counter of the Warp noise streams by ``substeps`` before a launch of that many
+        sub-steps (no-op without turbulence or with external noise)."""
         turb = self.turbulence
         if turb is not None and not turb.external_noise:
             turb.rng[1] += substeps
-        self.run(self._launches)
 
     def derived(self) -> torch.Tensor:
         """[N, DERIVED_WIDTH] derived state (engine-owned buffer, overwritten by the next call):
         one kernel launch per CPU slice."""
-        if self._binding_key() != self._key:
-            self.rebind()
+        self.check_binding()
         self.run(self._evaluate_launches)
         return self._evaluation
 
@@ -260,6 +296,6 @@ class WarpEngine(Engine):
                                                          self._params_ptrs, strict=True))
 
     def after_reset(self) -> None:
-        """Resets are torch writes into the bound memory; re-bind only if a tensor was replaced."""
+        """Resets are torch writes into the bound memory; bind again only if a tensor was replaced."""
         if self._params_moved():
             self.rebind()

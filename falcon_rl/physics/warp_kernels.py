@@ -20,7 +20,7 @@ from .dynamics import derivative_wp, evaluate_wp, project_wp
 from .params import WarpParams
 from .propulsion import motor_thrust_wp
 from .rotations import quaternion_to_euler_wp, rotation_matrix_wp
-from .state import QUATERNION_START, THROTTLE_START, VELOCITY_START, StateVec
+from .state import ANGULAR_RATE_START, DOWN_INDEX, QUATERNION_START, THROTTLE_START, VELOCITY_START, StateVec
 from .wind import NUM_FILTER_STATES, NUM_NOISE, Vec6, Vec8, dryden_step_wp
 
 # Denormal floats (|x| < 1.2e-38) take a slow microcode path on x86 CPUs. Trimmed, symmetric states
@@ -111,54 +111,58 @@ def advance_turbulence(s: StateVec, wind: wp.vec3, i: int, gust_velocity_body: w
     gust_rate_body[i] = out.gust_rate
 
 
-@wp.kernel
-def step_kernel(
-    x: wp.array2d(dtype=wp.float32),
-    time: wp.array(dtype=wp.float32),
-    command: wp.array(dtype=wp.vec4),
-    wind_ned: wp.array(dtype=wp.vec3),
-    gust_velocity_body: wp.array(dtype=wp.vec3),
-    gust_rate_body: wp.array(dtype=wp.vec3),
-    p: WarpParams,
-    dt: float,
-    integrator: int,
-    turb_filter: wp.array2d(dtype=wp.float32),
-    turb_w20: wp.array(dtype=wp.float32),
-    turb_noise: wp.array2d(dtype=wp.float32),
-    turb_rng: wp.array(dtype=wp.int32),
-    turb_mode: int,
-    substeps: int,
-    offset: int,
-):
-    """``substeps`` times: x[i] <- project(integrate(hold_ideal(x[i]), dt)) and time[i] += dt, for env
-    i = offset + tid, command held over the sub-steps.
+@wp.struct
+class EngineViews:
+    """Zero-copy views of an engine's buffers (the ``engine.py`` contract) that a step reads and writes."""
 
-    x: [N, S] state (in place). time: [N] s (in place). command: [N] normalised commands.
-    wind_ned, gust_*: [N] air motion.
-    integrator: 0 Euler, 1 classic RK4 (same stage arithmetic as ``integrators.rk4_step``).
-    turb_*: Dryden state (filter [N, 8], W20 [N], noise [N, 6], rng (seed, step) [2]); with
-    turb_mode != 0 the gusts are advanced at the start of each sub-step (noise from the streams, sub-step
-    k at counter turb_rng[1] - substeps + 1 + k, or read from turb_noise).
-    offset: first env of this launch (a CPU batch is split into slices stepped by parallel threads).
-    """
-    i = wp.tid() + offset
-    saved = flush_denormals_begin()
-    size = x.shape[1]
-    s = load_state(x, i, size)
-    u = command[i]
-    wind = wind_ned[i]
-    t = time[i]
+    x: wp.array2d(dtype=wp.float32)  # [N, S] state
+    time: wp.array(dtype=wp.float32)  # [N] s
+    command: wp.array(dtype=wp.vec4)  # [N] normalised commands held over the step
+    wind_ned: wp.array(dtype=wp.vec3)  # [N] m/s
+    gust_velocity_body: wp.array(dtype=wp.vec3)  # [N] m/s
+    gust_rate_body: wp.array(dtype=wp.vec3)  # [N] rad/s
+    crashed: wp.array(dtype=wp.bool)  # [N] stopped at the ground since the reset
+    turb_filter: wp.array2d(dtype=wp.float32)  # [N, 8] Dryden filter state
+    turb_w20: wp.array(dtype=wp.float32)  # [N] wind speed at 20 ft
+    turb_noise: wp.array2d(dtype=wp.float32)  # [N, 6] the step's white noise
+    turb_rng: wp.array(dtype=wp.int32)  # [2] (seed, step counter) of the noise streams
+
+
+@wp.struct
+class StepSettings:
+    """The fixed scalars of an engine's steps: dt (s), integrator (0 Euler, 1 RK4) and turbulence mode
+    (0 off, 1 noise from the streams, 2 noise read from ``turb_noise``)."""
+
+    dt: float
+    integrator: int
+    turb_mode: int
+
+
+@wp.func
+def advance_env(e: EngineViews, p: WarpParams, g: StepSettings, substeps: int, stop_at_ground: int, i: int):
+    """``substeps`` times: x[i] <- project(integrate(hold_ideal(x[i]), dt)) and time[i] += dt, the
+    command held; then the crash state when ``stop_at_ground`` != 0 (twin of ``Engine.stop_crashed``: an
+    env already crashed keeps its state, one whose CG is below the ground stops on it). Integrator: 0
+    Euler, 1 classic RK4 (the stage arithmetic of ``integrators.rk4_step``). With turbulence the gusts
+    are advanced at the start of each sub-step (sub-step k at counter turb_rng[1] - substeps + 1 + k)."""
+    size = e.x.shape[1]
+    s = load_state(e.x, i, size)
+    start = s
+    u = e.command[i]
+    wind = e.wind_ned[i]
+    t = e.time[i]
+    dt = g.dt
     for k in range(substeps):
-        if turb_mode != TURBULENCE_OFF:
-            advance_turbulence(s, wind, i, gust_velocity_body, gust_rate_body, turb_filter, turb_w20,
-                               turb_noise, turb_rng[0], turb_rng[1] - substeps + 1 + k, turb_mode, p.span[i],
-                               dt)
-        gv = gust_velocity_body[i]
-        gw = gust_rate_body[i]
+        if g.turb_mode != TURBULENCE_OFF:
+            advance_turbulence(s, wind, i, e.gust_velocity_body, e.gust_rate_body, e.turb_filter, e.turb_w20,
+                               e.turb_noise, e.turb_rng[0], e.turb_rng[1] - substeps + 1 + k, g.turb_mode,
+                               p.span[i], dt)
+        gv = e.gust_velocity_body[i]
+        gw = e.gust_rate_body[i]
         s = hold_ideal_wp(s, u, p, i)
         k1 = derivative_wp(s, u, wind, gv, gw, p, i)
         y = StateVec()
-        if integrator == 0:
+        if g.integrator == 0:
             y = s + dt * k1
         else:
             k2 = derivative_wp(s + (0.5 * dt) * k1, u, wind, gv, gw, p, i)
@@ -167,9 +171,29 @@ def step_kernel(
             y = s + (dt / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
         s = project_wp(y, p, i)
         t = t + dt
+    if stop_at_ground != 0:
+        below = s[DOWN_INDEX] > 0.0
+        if e.crashed[i]:
+            s = start
+        if below:
+            s[DOWN_INDEX] = 0.0
+            for k in range(VELOCITY_START, ANGULAR_RATE_START + 3):
+                s[k] = 0.0
+            e.crashed[i] = True
     for k in range(size):
-        x[i, k] = s[k]
-    time[i] = t
+        e.x[i, k] = s[k]
+    e.time[i] = t
+
+
+@wp.kernel
+def step_kernel(e: EngineViews, p: WarpParams, g: StepSettings, substeps: int, stop_at_ground: int,
+                offset: int):
+    """One engine step of env i = offset + tid (:func:`advance_env`): x, time, gusts, Dryden state and
+    ``crashed`` in place. ``offset``: first env of this launch (a CPU batch is split into slices
+    stepped by parallel threads)."""
+    i = wp.tid() + offset
+    saved = flush_denormals_begin()
+    advance_env(e, p, g, substeps, stop_at_ground, i)
     flush_denormals_end(saved)
 
 

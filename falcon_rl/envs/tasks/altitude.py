@@ -230,7 +230,7 @@ class AltitudeTask(Task):
                 - cfg.w_overshoot * past_target)
 
     # ------------------------------------------------------------------ fused step
-    def fused_step(self, action: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor] | None:
+    def fused_stepper(self) -> FusedStep | None:
         """:meth:`step` as one Warp kernel on the warp backend (``altitude_warp``; None elsewhere, or
         when a subclass overrides a method of the step): (observation [N, 11], reward [N], reason [N]
         long), buffers overwritten by the next call. With ``target_sequence`` the random shift is drawn
@@ -238,18 +238,21 @@ class AltitudeTask(Task):
         if self.sim.backend != "warp":
             return None
         from .altitude_warp import FusedAltitudeStep
-        from .warp_common import run_fused
+        from .warp_common import fused_stepper
 
-        return run_fused(self, AltitudeTask, _FUSED_METHODS, FusedAltitudeStep, action)
+        return fused_stepper(self, AltitudeTask, _FUSED_METHODS, FusedAltitudeStep)
 
     def info(self) -> dict[str, torch.Tensor]:
+        return {key: value.clone() for key, value in self.info_views().items()}
+
+    def info_views(self) -> dict[str, torch.Tensor]:
         return {
-            "target_altitude": self.target.clone(),
-            "reference_altitude": self.reference.clone(),
-            "reference_climb_rate": self.reference_rate.clone(),
-            "initial_altitude": self.initial_altitude.clone(),
-            "altitude_error": self.altitude_error.clone(),
-            "reference_error": self.reference_error.clone(),
+            "target_altitude": self.target,
+            "reference_altitude": self.reference,
+            "reference_climb_rate": self.reference_rate,
+            "initial_altitude": self.initial_altitude,
+            "altitude_error": self.altitude_error,
+            "reference_error": self.reference_error,
         }
 
 

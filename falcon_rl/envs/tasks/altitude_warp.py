@@ -126,14 +126,12 @@ def next_target(target: float, shift: wp.int64, table: wp.array(dtype=wp.float32
     return table[(current + int(shift)) % size]
 
 
-@wp.kernel
-def altitude_step_kernel(sim: SimulatorViews, buf: AltitudeBuffers, c: AltitudeConstants,
-                         observation: wp.array2d(dtype=wp.float32), reward: wp.array(dtype=wp.float32),
-                         reason: wp.array(dtype=wp.int64), offset: int):
-    """One altitude-task step of env i = offset + tid after the physics: updates the buffers in place
+@wp.func
+def altitude_step(sim: SimulatorViews, buf: AltitudeBuffers, c: AltitudeConstants,
+                  observation: wp.array2d(dtype=wp.float32), reward: wp.array(dtype=wp.float32),
+                  reason: wp.array(dtype=wp.int64), i: int):
+    """One altitude-task step of env i after the physics: updates the buffers in place
     and writes observation [N, 11], reward [N] and the termination reason [N] (0: flying)."""
-    i = wp.tid() + offset
-    saved = flush_denormals_begin()
     f = flight_state(sim, i)
     height = f.height
     airspeed = f.airspeed
@@ -201,6 +199,16 @@ def altitude_step_kernel(sim: SimulatorViews, buf: AltitudeBuffers, c: AltitudeC
     observation[i, 8] = clip(2.0 * f.throttle - 1.0, lim)
     observation[i, 9] = clip(integral / 10.0, lim)
     observation[i, 10] = clip(ref[1] / 5.0, lim)
+
+
+@wp.kernel
+def altitude_step_kernel(sim: SimulatorViews, buf: AltitudeBuffers, c: AltitudeConstants,
+                         observation: wp.array2d(dtype=wp.float32), reward: wp.array(dtype=wp.float32),
+                         reason: wp.array(dtype=wp.int64), offset: int):
+    """:func:`altitude_step` of env i = offset + tid (``offset``: first env of this CPU slice)."""
+    i = wp.tid() + offset
+    saved = flush_denormals_begin()
+    altitude_step(sim, buf, c, observation, reward, reason, i)
     flush_denormals_end(saved)
 
 
@@ -228,6 +236,7 @@ class FusedAltitudeStep(FusedStep):
     reward [N], reason [N] long, and the random target shift [N] long drawn before each launch."""
 
     kernel = altitude_step_kernel
+    kernel_func = altitude_step
     task: Task
 
     def __init__(self, task: Task):

@@ -170,7 +170,7 @@ class AttitudeTask(Task):
                 - cfg.w_smooth * action_rate)
 
     # ------------------------------------------------------------------ fused step
-    def fused_step(self, action: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor] | None:
+    def fused_stepper(self) -> FusedStep | None:
         """:meth:`step` as one Warp kernel on the warp backend (``attitude_warp``; None elsewhere, or
         when a subclass overrides a method of the step or the stream is not a ``RandomCommandStream``):
         (observation [N, 15], reward [N], reason [N] long), buffers overwritten by the next call."""
@@ -178,18 +178,21 @@ class AttitudeTask(Task):
         if self.sim.backend != "warp" or (stream is not None and type(stream) is not RandomCommandStream):
             return None
         from .attitude_warp import FusedAttitudeStep
-        from .warp_common import run_fused
+        from .warp_common import fused_stepper
 
-        return run_fused(self, AttitudeTask, _FUSED_METHODS, FusedAttitudeStep, action)
+        return fused_stepper(self, AttitudeTask, _FUSED_METHODS, FusedAttitudeStep)
 
     def info(self) -> dict[str, torch.Tensor]:
+        return {key: value.clone() for key, value in self.info_views().items()}
+
+    def info_views(self) -> dict[str, torch.Tensor]:
         return {
-            "bank_command": self.commanded[:, 0].clone(),
-            "climb_rate_command": self.commanded[:, 1].clone(),
-            "airspeed_command": self.commanded[:, 2].clone(),
-            "bank_error": self.errors[:, 0].clone(),
-            "climb_rate_error": self.errors[:, 1].clone(),
-            "airspeed_error": self.errors[:, 2].clone(),
+            "bank_command": self.commanded[:, 0],
+            "climb_rate_command": self.commanded[:, 1],
+            "airspeed_command": self.commanded[:, 2],
+            "bank_error": self.errors[:, 0],
+            "climb_rate_error": self.errors[:, 1],
+            "airspeed_error": self.errors[:, 2],
         }
 
 

@@ -109,14 +109,12 @@ def random_stream_step(buf: AttitudeBuffers, c: AttitudeConstants, i: int) -> wp
     return command
 
 
-@wp.kernel
-def attitude_step_kernel(sim: SimulatorViews, buf: AttitudeBuffers, c: AttitudeConstants,
-                         observation: wp.array2d(dtype=wp.float32), reward: wp.array(dtype=wp.float32),
-                         reason: wp.array(dtype=wp.int64), offset: int):
-    """One attitude-task step of env i = offset + tid after the physics: updates the buffers in place
+@wp.func
+def attitude_step(sim: SimulatorViews, buf: AttitudeBuffers, c: AttitudeConstants,
+                  observation: wp.array2d(dtype=wp.float32), reward: wp.array(dtype=wp.float32),
+                  reason: wp.array(dtype=wp.int64), i: int):
+    """One attitude-task step of env i after the physics: updates the buffers in place
     and writes observation [N, 15], reward [N] and the termination reason [N] (0: flying)."""
-    i = wp.tid() + offset
-    saved = flush_denormals_begin()
     f = flight_state(sim, i)
     # advance: clock, command stream
     buf.time[i] = buf.time[i] + c.env_dt
@@ -153,6 +151,16 @@ def attitude_step_kernel(sim: SimulatorViews, buf: AttitudeBuffers, c: AttitudeC
     observation[i, 10] = clip(f.velocity_ned[2] / c.climb_scale, lim)
     for k in range(4):
         observation[i, 11 + k] = clip(action[k], lim)
+
+
+@wp.kernel
+def attitude_step_kernel(sim: SimulatorViews, buf: AttitudeBuffers, c: AttitudeConstants,
+                         observation: wp.array2d(dtype=wp.float32), reward: wp.array(dtype=wp.float32),
+                         reason: wp.array(dtype=wp.int64), offset: int):
+    """:func:`attitude_step` of env i = offset + tid (``offset``: first env of this CPU slice)."""
+    i = wp.tid() + offset
+    saved = flush_denormals_begin()
+    attitude_step(sim, buf, c, observation, reward, reason, i)
     flush_denormals_end(saved)
 
 
@@ -192,6 +200,7 @@ class FusedAttitudeStep(FusedStep):
     reward [N], reason [N] long, and the random stream's uniforms [N, 4] drawn before each launch."""
 
     kernel = attitude_step_kernel
+    kernel_func = attitude_step
     task: Task
 
     def __init__(self, task: Task):

@@ -29,7 +29,7 @@ from __future__ import annotations
 import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
-from typing import ClassVar
+from typing import TYPE_CHECKING, ClassVar
 
 import torch
 from tensordict import TensorDictBase
@@ -38,6 +38,9 @@ from ...airframe import Airframe
 from ...physics import Simulator, trim_level
 from ...physics import state as S
 from ...physics.rotations import quaternion_to_euler
+
+if TYPE_CHECKING:
+    from .warp_common import FusedStep
 
 #: Why an episode terminated: "termination_reason" holds the index (0: not terminated). Checked in
 #: this order, the first that applies is published.
@@ -222,16 +225,22 @@ class Task(ABC):
         self.previous_action.copy_(action)
         return self.observe(state), reward, reason
 
-    def fused_step(self, action: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor] | None:
-        """The backend-fused twin of :meth:`step`, or None when this task has none for the simulator's
-        backend (the default): the env then builds ``sim.state`` and calls :meth:`step`.
+    def fused_stepper(self) -> FusedStep | None:
+        """This task's backend-fused step (bound on first use, kept in ``_fused``), or None when it has
+        none for the simulator's backend (the default) or a subclass overrides a method it fuses.
 
-        Called right after the physics sub-steps with the same checked ``action`` [N, A]; it reads the
-        simulator's buffers (``sim.x``, ``sim.engine.derived()``, ``sim.time``) instead of a state
-        TensorDict, updates every buffer :meth:`step` updates, exactly as :meth:`step` would (parity
-        tested), and returns (observation [N, D], reward [N], termination reason [N] long). The returned
-        tensors may be buffers that the next call overwrites (the env derives fresh ones)."""
+        Called right after the physics sub-steps with the same checked action [N, A], it reads the
+        simulator's buffers instead of a state TensorDict, updates every buffer :meth:`step` updates,
+        exactly as :meth:`step` would (parity tested), and returns (observation [N, D], reward [N],
+        termination reason [N] long), buffers that the next call overwrites. On the warp backend the env
+        runs it inside its own one-launch step (``warp_env_step``) when nothing else overrides it."""
         return None
+
+    def fused_step(self, action: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor] | None:
+        """The backend-fused twin of :meth:`step` (:meth:`fused_stepper`), or None when there is none:
+        the env then builds ``sim.state`` and calls :meth:`step`."""
+        stepper = self.fused_stepper()
+        return None if stepper is None else stepper(action)
 
     def __getstate__(self) -> dict:
         """The plain state: a fused step's backend binding (``_fused``) is made again after unpickling."""
@@ -240,6 +249,12 @@ class Task(ABC):
     @abstractmethod
     def info(self) -> dict[str, torch.Tensor]:
         """Task quantities published under ("task", name): references and tracking errors."""
+
+    def info_views(self) -> dict[str, torch.Tensor] | None:
+        """:meth:`info`'s entries as live views of the task's buffers (no copies: they change with the next
+        step or reset), in the same order, for hosts that read them every step; None (the default) when
+        an entry is computed rather than stored."""
+        return None
 
     def info_shapes(self) -> dict[str, tuple[int, ...]]:
         """Trailing shapes of :meth:`info` entries (after the batch dim)."""

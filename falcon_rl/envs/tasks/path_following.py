@@ -139,16 +139,16 @@ class PathFollowingTask(Task):
         lost = self.errors[:, 0].abs() > self.config.lost_distance
         return {**super().termination_checks(state), "lost": lost}
 
-    def fused_step(self, action: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor] | None:
+    def fused_stepper(self) -> FusedStep | None:
         """:meth:`step` as one Warp kernel on the warp backend (``path_following_warp``; None elsewhere,
         or when a subclass overrides a method of the step): (observation [N, 17], reward [N], reason [N]
         long), buffers overwritten by the next call."""
         if self.sim.backend != "warp":
             return None
         from .path_following_warp import FusedPathFollowingStep
-        from .warp_common import run_fused
+        from .warp_common import fused_stepper
 
-        return run_fused(self, PathFollowingTask, _FUSED_METHODS, FusedPathFollowingStep, action)
+        return fused_stepper(self, PathFollowingTask, _FUSED_METHODS, FusedPathFollowingStep)
 
     def info(self) -> dict[str, torch.Tensor]:
         return {"cross_track_error": self.errors[:, 0].clone(), "course_error": self.errors[:, 1].clone(),

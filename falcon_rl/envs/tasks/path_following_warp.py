@@ -70,14 +70,12 @@ class PathFollowingConstants:
     observation_clip: float
 
 
-@wp.kernel
-def path_following_step_kernel(sim: SimulatorViews, buf: PathFollowingBuffers, c: PathFollowingConstants,
-                               observation: wp.array2d(dtype=wp.float32), reward: wp.array(dtype=wp.float32),
-                               reason: wp.array(dtype=wp.int64), offset: int):
-    """One path-following step of env i = offset + tid after the physics: updates the buffers in place
+@wp.func
+def path_following_step(sim: SimulatorViews, buf: PathFollowingBuffers, c: PathFollowingConstants,
+                        observation: wp.array2d(dtype=wp.float32), reward: wp.array(dtype=wp.float32),
+                        reason: wp.array(dtype=wp.int64), i: int):
+    """One path-following step of env i after the physics: updates the buffers in place
     and writes observation [N, 17], reward [N] and the termination reason [N] (0: flying)."""
-    i = wp.tid() + offset
-    saved = flush_denormals_begin()
     f = flight_state(sim, i)
     buf.time[i] = buf.time[i] + c.env_dt
     # update: (e_y, chi_err, e_h)
@@ -116,6 +114,16 @@ def path_following_step_kernel(sim: SimulatorViews, buf: PathFollowingBuffers, c
         observation[i, 10 + k] = clip(f.angular_rate[k] / 2.0, lim)
     for k in range(4):
         observation[i, 13 + k] = clip(action[k], lim)
+
+
+@wp.kernel
+def path_following_step_kernel(sim: SimulatorViews, buf: PathFollowingBuffers, c: PathFollowingConstants,
+                               observation: wp.array2d(dtype=wp.float32), reward: wp.array(dtype=wp.float32),
+                               reason: wp.array(dtype=wp.int64), offset: int):
+    """:func:`path_following_step` of env i = offset + tid (``offset``: first env of this CPU slice)."""
+    i = wp.tid() + offset
+    saved = flush_denormals_begin()
+    path_following_step(sim, buf, c, observation, reward, reason, i)
     flush_denormals_end(saved)
 
 
@@ -124,6 +132,7 @@ class FusedPathFollowingStep(FusedStep):
     observation [N, 17], reward [N], reason [N] long."""
 
     kernel = path_following_step_kernel
+    kernel_func = path_following_step
     task: Task
 
     def __init__(self, task: Task):

@@ -166,16 +166,16 @@ class TrajectoryTask(Task):
         distance = torch.linalg.vector_norm(self.position_error, dim=-1)
         return {**super().termination_checks(state), "lost": distance > self.config.lost_distance}
 
-    def fused_step(self, action: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor] | None:
+    def fused_stepper(self) -> FusedStep | None:
         """:meth:`step` as one Warp kernel on the warp backend (``trajectory_warp``; None elsewhere, or
         when a subclass overrides a method of the step): (observation [N, 17], reward [N], reason [N]
         long), buffers overwritten by the next call."""
         if self.sim.backend != "warp":
             return None
         from .trajectory_warp import FusedTrajectoryStep
-        from .warp_common import run_fused
+        from .warp_common import fused_stepper
 
-        return run_fused(self, TrajectoryTask, _FUSED_METHODS, FusedTrajectoryStep, action)
+        return fused_stepper(self, TrajectoryTask, _FUSED_METHODS, FusedTrajectoryStep)
 
     def info(self) -> dict[str, torch.Tensor]:
         return {"position_error": torch.linalg.vector_norm(self.position_error, dim=-1),

@@ -77,14 +77,12 @@ def heading_frame(e: wp.vec3, sin_yaw: float, cos_yaw: float) -> wp.vec3:
     return wp.vec3(cos_yaw * e[0] + sin_yaw * e[1], -sin_yaw * e[0] + cos_yaw * e[1], e[2])
 
 
-@wp.kernel
-def trajectory_step_kernel(sim: SimulatorViews, buf: TrajectoryBuffers, c: TrajectoryConstants,
-                           observation: wp.array2d(dtype=wp.float32), reward: wp.array(dtype=wp.float32),
-                           reason: wp.array(dtype=wp.int64), offset: int):
-    """One trajectory-task step of env i = offset + tid after the physics: updates the buffers in place
+@wp.func
+def trajectory_step(sim: SimulatorViews, buf: TrajectoryBuffers, c: TrajectoryConstants,
+                    observation: wp.array2d(dtype=wp.float32), reward: wp.array(dtype=wp.float32),
+                    reason: wp.array(dtype=wp.int64), i: int):
+    """One trajectory-task step of env i after the physics: updates the buffers in place
     and writes observation [N, 17], reward [N] and the termination reason [N] (0: flying)."""
-    i = wp.tid() + offset
-    saved = flush_denormals_begin()
     f = flight_state(sim, i)
     # advance: clock and reference point (p_ref, v_ref)
     time = buf.time[i] + c.env_dt
@@ -131,6 +129,16 @@ def trajectory_step_kernel(sim: SimulatorViews, buf: TrajectoryBuffers, c: Traje
     observation[i, 12] = clip(f.beta / c.air_angle_scale, lim)
     for k in range(4):
         observation[i, 13 + k] = clip(action[k], lim)
+
+
+@wp.kernel
+def trajectory_step_kernel(sim: SimulatorViews, buf: TrajectoryBuffers, c: TrajectoryConstants,
+                           observation: wp.array2d(dtype=wp.float32), reward: wp.array(dtype=wp.float32),
+                           reason: wp.array(dtype=wp.int64), offset: int):
+    """:func:`trajectory_step` of env i = offset + tid (``offset``: first env of this CPU slice)."""
+    i = wp.tid() + offset
+    saved = flush_denormals_begin()
+    trajectory_step(sim, buf, c, observation, reward, reason, i)
     flush_denormals_end(saved)
 
 
@@ -139,6 +147,7 @@ class FusedTrajectoryStep(FusedStep):
     [N, 17], reward [N], reason [N] long."""
 
     kernel = trajectory_step_kernel
+    kernel_func = trajectory_step
     task: Task
 
     def __init__(self, task: Task):

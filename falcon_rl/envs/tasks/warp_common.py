@@ -11,7 +11,7 @@
   ``base.TERMINATION_REASONS`` (ground contact, alpha stall, speed stall, lost).
 - :class:`FusedStep`: binds zero-copy Warp views of the simulator's and the task's tensors, records
   the task kernel's launch per CPU slice of the engine, replays it with ``sim.engine.run`` and binds
-  again when a simulator tensor it reads has moved; :func:`run_fused` is the shared ``fused_step``.
+  again when a simulator tensor it reads has moved; :func:`fused_stepper` is the shared ``fused_stepper``.
 
 A task kernel has the signature ``(sim: SimulatorViews, buf: <Buffers>, c: <Constants>, observation
 [N, D], reward [N], reason [N] int64, offset: int)`` and handles env i = offset + tid.
@@ -256,6 +256,8 @@ class FusedStep:
     structs); it draws the step's random numbers in :meth:`draw` (torch, the task's generator)."""
 
     kernel: ClassVar[Any]
+    #: The task step's ``@wp.func`` that :attr:`kernel` wraps (the env-step kernel calls it too).
+    kernel_func: ClassVar[Any]
 
     def __init__(self, task: Task):
         self.task = task
@@ -266,6 +268,7 @@ class FusedStep:
         self.action = torch.zeros(n, task.action_dim, device=device, dtype=torch.float32)
         self.device = warp_device(device)
         self._launches: list[Any] = []
+        self._inputs: list[Any] = []
         self._key: tuple[int, ...] = ()
 
     def _simulator_tensors(self) -> tuple[torch.Tensor, ...]:
@@ -274,8 +277,19 @@ class FusedStep:
         return (sim.x, sim.wind_ned, sim.gust_velocity_body, p.span, p.wing_quarter_chord, p.surface_min,
                 p.surface_max)
 
-    def _binding_key(self) -> tuple[int, ...]:
+    def binding_key(self) -> tuple[int, ...]:
+        """What the launches were bound to (the addresses of the simulator tensors the kernel reads)."""
         return tuple(t.data_ptr() for t in self._simulator_tensors())
+
+    def ensure_bound(self) -> None:
+        """Bind (again) when never bound or a simulator tensor moved."""
+        if not self._launches or self.binding_key() != self._key:
+            self.bind()
+
+    def kernel_inputs(self) -> list[Any]:
+        """The task function's inputs before env i: (simulator views, buffers, constants, observation,
+        reward, reason), as bound by the last :meth:`bind`."""
+        return self._inputs
 
     def task_inputs(self) -> list[Any]:
         """The kernel's inputs between the simulator views and the outputs (buffers, constants)."""
@@ -288,19 +302,18 @@ class FusedStep:
                                  "surface_min", "surface_max"), self._simulator_tensors(), strict=True):
             setattr(views, name, wp.from_torch(tensor) if name == "x" else warp_view(tensor))
         outputs = [wp.from_torch(self.observation), wp.from_torch(self.reward), warp_view(self.reason)]
-        inputs = [views, *self.task_inputs(), *outputs]
-        self._launches = [wp.launch(self.kernel, dim=count, inputs=[*inputs, offset], device=self.device,
-                                    record_cmd=True)
+        self._inputs = [views, *self.task_inputs(), *outputs]
+        self._launches = [wp.launch(self.kernel, dim=count, inputs=[*self._inputs, offset],
+                                    device=self.device, record_cmd=True)
                           for offset, count in self.task.sim.engine.slices]
-        self._key = self._binding_key()
+        self._key = self.binding_key()
 
     def draw(self) -> None:
         """Draw the step's random numbers into bound buffers (none by default)."""
 
     def __call__(self, action: torch.Tensor) -> StepOutputs:
         """(observation [N, D], reward [N], reason [N] long) of the step that applied ``action`` [N, A]."""
-        if not self._launches or self._binding_key() != self._key:
-            self.bind()
+        self.ensure_bound()
         self.action.copy_(action)
         self.draw()
         # The engine replays them as its own: on torch's current CUDA stream, or the CPU slices on its
@@ -309,15 +322,15 @@ class FusedStep:
         return self.observation, self.reward, self.reason
 
 
-def run_fused(task: Task, owner: type, methods: tuple[str, ...], factory: type[FusedStep],
-              action: torch.Tensor) -> StepOutputs | None:
-    """The shared body of a task's ``fused_step``: None when a subclass of ``owner`` overrides one of
-    the fused ``methods`` (it then falls back to ``step``), else the outputs of the task's
-    ``factory`` step, built on the first call and kept in ``task._fused``."""
+def fused_stepper(task: Task, owner: type, methods: tuple[str, ...], factory: type[FusedStep]
+                  ) -> FusedStep | None:
+    """The shared body of a task's ``fused_stepper``: None when a subclass of ``owner`` overrides one of
+    the fused ``methods`` (it then falls back to ``step``), else the task's ``factory`` step, built on
+    the first call and kept in ``task._fused``."""
     cls = type(task)
     if any(getattr(cls, name) is not getattr(owner, name) for name in methods):
         return None
     fused = getattr(task, "_fused", None)
     if fused is None:
         fused = task.__dict__["_fused"] = factory(task)
-    return fused(action)
+    return fused

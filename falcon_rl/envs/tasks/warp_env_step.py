@@ -1,0 +1,234 @@
+"""The whole env step in one Warp launch (per CPU slice) on the warp backend: ``FixedWingEnv`` with a task
+whose step is fused (``Task.fused_env_step``).
+
+For env i, :func:`env_step_kernel`'s kernels do in order what the env's torch glue around the two launches
+of the engine and the task did, with the same float32 arithmetic:
+
+1. the action contract's values (``transforms.action_check.check_action``): a row with a NaN flies the
+   centre command (0) and is flagged; the others are clamped to [-1, 1]; the result is the task's
+   action buffer;
+2. ``Task.command`` (the action into its channels of the task's command buffer, trim in the others) and
+   ``Engine.step``'s clamp into the engine's command;
+3. the physics sub-steps and the crash state (``warp_kernels.advance_env``, the engine's own step);
+4. the task's step (its ``@wp.func``: reference, observation, reward, termination);
+5. the non-finite guard of ``FixedWingEnv.step_tensors``: a row whose state, gusts, clock, observation
+   or reward is not finite, or whose action had a NaN, ends with reason "non_finite" and its non-finite
+   outputs zeroed;
+6. the episode step count and the truncation flag (at ``max_episode_steps``, not when terminated).
+
+The kernels of the built-in tasks are made at import, all in this module, so that Warp compiles one
+module for them (the physics and every task). :class:`FusedEnvStep` binds the views (the engine's
+buffers, the task's, the env's counters), records the launches and replays them; per step it copies the
+action into its buffer (a cast for other float dtypes), draws the task's random numbers, bumps the
+turbulence stream counter when on, and launches: nothing else runs in Python or torch.
+
+No ``from __future__ import annotations`` here: Warp reads the kernel factory's annotations, which name
+the task's struct types through the closure.
+"""
+
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import torch
+import warp as wp
+
+from ...physics.params import WarpParams
+from ...physics.warp_kernels import (
+    EngineViews,
+    StepSettings,
+    advance_env,
+    flush_denormals_begin,
+    flush_denormals_end,
+)
+from .altitude_warp import AltitudeBuffers, AltitudeConstants, altitude_step
+from .attitude_warp import AttitudeBuffers, AttitudeConstants, attitude_step
+from .base import TERMINATION_CODE
+from .path_following_warp import PathFollowingBuffers, PathFollowingConstants, path_following_step
+from .trajectory_warp import TrajectoryBuffers, TrajectoryConstants, trajectory_step
+from .warp_common import FusedStep, SimulatorViews
+
+if TYPE_CHECKING:
+    from ..fixed_wing import FixedWingEnv
+
+NON_FINITE = wp.constant(TERMINATION_CODE["non_finite"])
+
+
+@wp.struct
+class EnvViews:
+    """The env's side of a step: the action as given and as checked, the command, the counters and the
+    flags it writes."""
+
+    raw_action: wp.array2d(dtype=wp.float32)  # [N, A] the step's action (cast to float32)
+    action: wp.array2d(dtype=wp.float32)  # [N, A] the checked action the task reads
+    channels: wp.array(dtype=wp.int32)  # [A] the command channel of each action entry
+    command_buffer: wp.array(dtype=wp.vec4)  # [N] the task's command (trim in undriven channels)
+    step_count: wp.array(dtype=wp.int64)  # [N] env steps since the reset
+    truncated: wp.array(dtype=wp.bool)  # [N] out: the horizon reached, not terminated
+    non_finite: wp.array(dtype=wp.bool)  # [N] out: terminated with reason "non_finite"
+    max_episode_steps: wp.int64
+
+
+@wp.func
+def take_action(v: EnvViews, e: EngineViews, i: int) -> bool:
+    """Env i's checked action, task command and engine command (steps 1-2 of the module docstring);
+    returns whether the action had a NaN."""
+    width = v.raw_action.shape[1]
+    nan = bool(False)  # noqa: UP018 (a mutable Warp local)
+    for k in range(width):
+        if wp.isnan(v.raw_action[i, k]):
+            nan = True
+    u = v.command_buffer[i]
+    for k in range(width):
+        a = wp.float32(0.0)
+        if not nan:
+            a = wp.clamp(v.raw_action[i, k], -1.0, 1.0)
+        v.action[i, k] = a
+        u[v.channels[k]] = a
+    v.command_buffer[i] = u
+    e.command[i] = wp.vec4(wp.clamp(u[0], -1.0, 1.0), wp.clamp(u[1], -1.0, 1.0), wp.clamp(u[2], -1.0, 1.0),
+                           wp.clamp(u[3], -1.0, 1.0))
+    return nan
+
+
+@wp.func
+def vec3_finite(a: wp.vec3) -> bool:
+    """Every component of ``a`` is finite."""
+    return wp.isfinite(a[0]) and wp.isfinite(a[1]) and wp.isfinite(a[2])
+
+
+@wp.func
+def finish_step(v: EnvViews, e: EngineViews, observation: wp.array2d(dtype=wp.float32),
+                reward: wp.array(dtype=wp.float32), reason: wp.array(dtype=wp.int64), nan_action: bool,
+                i: int):
+    """The non-finite guard, the step count and the truncation flag of env i (steps 5-6)."""
+    finite = bool(wp.isfinite(e.time[i]) and wp.isfinite(reward[i]))
+    finite = finite and vec3_finite(e.gust_velocity_body[i]) and vec3_finite(e.gust_rate_body[i])
+    for k in range(e.x.shape[1]):
+        if not wp.isfinite(e.x[i, k]):
+            finite = False
+    for k in range(observation.shape[1]):
+        if not wp.isfinite(observation[i, k]):
+            finite = False
+    bad = nan_action or not finite
+    if bad:
+        reason[i] = wp.int64(NON_FINITE)
+        for k in range(observation.shape[1]):
+            if not wp.isfinite(observation[i, k]):
+                observation[i, k] = 0.0
+        if not wp.isfinite(reward[i]):
+            reward[i] = 0.0
+    v.non_finite[i] = bad
+    count = v.step_count[i] + wp.int64(1)
+    v.step_count[i] = count
+    v.truncated[i] = count >= v.max_episode_steps and reason[i] == wp.int64(0)
+
+
+def env_step_kernel(task_step: Any, buffers: type, constants: type) -> Any:
+    """A Warp kernel of the whole env step (the module docstring) around ``task_step``, a task's
+    ``@wp.func (sim, buf: buffers, c: constants, observation [N, D], reward [N], reason [N] int64, i)``,
+    for env i = offset + tid. Made in this module (kernels made at import share one compiled module)."""
+
+    def env_step(e: EngineViews, p: WarpParams, g: StepSettings, substeps: int, stop_at_ground: int,
+                 v: EnvViews, sim: SimulatorViews, buf: buffers, c: constants,  # type: ignore[valid-type]
+                 observation: wp.array2d(dtype=wp.float32), reward: wp.array(dtype=wp.float32),
+                 reason: wp.array(dtype=wp.int64), offset: int):
+        i = wp.tid() + offset
+        saved = flush_denormals_begin()
+        nan_action = take_action(v, e, i)
+        advance_env(e, p, g, substeps, stop_at_ground, i)
+        task_step(sim, buf, c, observation, reward, reason, i)
+        finish_step(v, e, observation, reward, reason, nan_action, i)
+        flush_denormals_end(saved)
+
+    return wp.kernel(env_step)
+
+
+#: Env-step kernels of the built-in tasks' fused steps, by the task step's ``@wp.func``.
+ENV_STEP_KERNELS: dict[Any, Any] = {
+    func: env_step_kernel(func, buffers, constants) for func, buffers, constants in (
+        (altitude_step, AltitudeBuffers, AltitudeConstants),
+        (attitude_step, AttitudeBuffers, AttitudeConstants),
+        (path_following_step, PathFollowingBuffers, PathFollowingConstants),
+        (trajectory_step, TrajectoryBuffers, TrajectoryConstants),
+    )}
+
+
+class FusedEnvStep:
+    """The recorded launches of an env's whole step (one per CPU slice of the engine) with its buffers:
+    the action [N, A] as given, the truncated and non_finite flags [N] bool; the observation, reward and
+    reason buffers are the task's fused step's (:class:`~.warp_common.FusedStep`). Every buffer is
+    overwritten by the next call. It binds again when the engine binds again or a tensor it reads moved.
+
+    ``numpy_views()`` gives NumPy views of the action and output buffers on the CPU, for callers that
+    step with NumPy (write the action into the view, :meth:`launch`, read the outputs)."""
+
+    def __init__(self, env: "FixedWingEnv", task_step: FusedStep):
+        self.env, self.task_step = env, task_step
+        self.kernel = ENV_STEP_KERNELS[task_step.kernel_func]
+        n, device = env.config.num_envs, env.device
+        task = env.task
+        self.raw_action = torch.zeros(n, task.action_dim, device=device, dtype=torch.float32)
+        self.truncated = torch.zeros(n, device=device, dtype=torch.bool)
+        self.non_finite = torch.zeros(n, device=device, dtype=torch.bool)
+        self.channels = torch.as_tensor(task.action_channels, device=device, dtype=torch.int32)
+        self._launches: list[Any] = []
+        self._key: tuple[Any, ...] = ()
+
+    def _binding_key(self) -> tuple[Any, ...]:
+        """What the launches depend on beyond buffers written in place: the engine's binding (its
+        parameters object, dt, integrator, turbulence; a replaced parameter tensor is seen at the next
+        reset, as by the engine), the horizon, the decimation and the crash state."""
+        env, engine = self.env, self.env.sim.engine
+        engine.check_binding()
+        return engine.generation, env.max_episode_steps, env.config.decimation, env.sim.stop_at_ground
+
+    def bind(self) -> None:
+        """Bind the views and record the launches (binding the engine and the task step first)."""
+        env, engine = self.env, self.env.sim.engine
+        engine.check_binding()
+        self.task_step.ensure_bound()
+        views, params, settings = engine.bind_views()
+        v = EnvViews()
+        v.raw_action = wp.from_torch(self.raw_action)
+        v.action = wp.from_torch(self.task_step.action)
+        v.channels = wp.from_torch(self.channels)
+        v.command_buffer = wp.from_torch(env.task.command_buffer, dtype=wp.vec4)
+        v.step_count = wp.from_torch(env.step_count, dtype=wp.int64)
+        v.truncated = wp.from_torch(self.truncated, dtype=wp.bool)
+        v.non_finite = wp.from_torch(self.non_finite, dtype=wp.bool)
+        v.max_episode_steps = int(env.max_episode_steps)
+        inputs = [views, params, settings, int(env.config.decimation), int(env.sim.stop_at_ground), v,
+                  *self.task_step.kernel_inputs()]
+        self._launches = [wp.launch(self.kernel, dim=count, inputs=[*inputs, offset],
+                                    device=engine.device, record_cmd=True)
+                          for offset, count in engine.slices]
+        self._key = self._binding_key()
+
+    def launch(self) -> None:
+        """One env step of the action in :attr:`raw_action`: the task's draws, the turbulence counter and
+        the launches (binding again first when needed)."""
+        if not self._launches or self._binding_key() != self._key:
+            self.bind()
+        self.task_step.draw()
+        engine = self.env.sim.engine
+        engine.bump_turbulence_counter(self.env.config.decimation)
+        engine.run(self._launches)
+
+    def __call__(self, action: torch.Tensor) -> tuple[torch.Tensor, ...]:
+        """(observation [N, D], reward [N], reason [N] long, truncated [N], non_finite [N]) of the step
+        with ``action`` [N, A] (a real float tensor of that shape, checked by the caller)."""
+        self.raw_action.copy_(action)
+        self.launch()
+        t = self.task_step
+        return t.observation, t.reward, t.reason, self.truncated, self.non_finite
+
+    def numpy_views(self) -> dict[str, np.ndarray]:
+        """NumPy views (CPU only) of ``action`` [N, A] (write the step's action here), ``observation``
+        [N, D], ``reward`` [N], ``reason`` [N], ``truncated`` [N] and ``non_finite`` [N]."""
+        t = self.task_step
+        tensors = {"action": self.raw_action, "observation": t.observation, "reward": t.reward,
+                   "reason": t.reason, "truncated": self.truncated, "non_finite": self.non_finite}
+        return {name: tensor.numpy() for name, tensor in tensors.items()}
+
+
+__all__ = ["ENV_STEP_KERNELS", "EnvViews", "FusedEnvStep", "env_step_kernel"]

@@ -1,0 +1,167 @@
+"""The env step as one Warp launch (``tasks.warp_env_step``) against the same step run as separate stages
+(the engine's launch, the task's fused launch, the torch action check, guard and counters), bit for bit;
+the crash state inside the engine's kernel against its torch twin; and the Gymnasium NumPy step against
+the tensor core."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from falcon_rl.envs import make_env
+from falcon_rl.envs.gym import CoreAircraftEnv
+from falcon_rl.envs.tasks import TERMINATION_CODE, AltitudeTask
+from falcon_rl.physics import Simulator
+from falcon_rl.physics import state as S
+
+FUSED_TASKS = ("altitude", "attitude", "path_following", "trajectory", "climb_descend")
+N = 16
+
+
+def _pair(task: str, **options: object) -> tuple:
+    """Two identical envs (same seed), reset."""
+    envs = [make_env(task, "volantex_ranger", num_envs=N, backend="warp", seed=5, lean=True, **options)
+            for _ in range(2)]
+    for env in envs:
+        env.reset()
+    return tuple(envs)
+
+
+def _actions(step: int, width: int, generator: torch.Generator) -> torch.Tensor:
+    """Uniform actions in [-1.3, 1.3] with, now and then, a NaN row, +-inf, a huge value and float64."""
+    action = torch.rand(N, width, generator=generator) * 2.6 - 1.3
+    if step % 7 == 3:
+        action[1, 0] = float("nan")
+        action[2, -1] = float("inf")
+        action[3, 0] = -1e30
+    return action.double() if step % 5 == 4 else action
+
+
+def _dive(env: object) -> None:
+    """Put the first four envs 0.4 m above the ground, sinking at 12 m/s (they hit it this step)."""
+    x = env.sim.x
+    x[:4, S.DOWN_INDEX] = -0.4
+    x[:4, S.VELOCITY.start + 2] = 12.0
+
+
+def _assert_same(one: object, two: object) -> None:
+    assert torch.equal(one.sim.x, two.sim.x)
+    for name in ("crashed", "time", "command", "gust_velocity_body"):
+        assert torch.equal(getattr(one.sim, name), getattr(two.sim, name)), name
+    assert torch.equal(one.step_count, two.step_count)
+    for key, value in one.task.info().items():
+        assert torch.equal(value, two.task.info()[key]), key
+
+
+@pytest.mark.parametrize("task", FUSED_TASKS)
+@pytest.mark.parametrize("options", [{}, {"turbulence": "moderate", "wind": (3.0, -2.0, 0.0)}],
+                         ids=["calm", "turbulent"])
+def test_one_launch_step_equals_the_staged_step(task: str, options: dict) -> None:
+    one, two = _pair(task, **options)
+    assert one.env_stepper() is not None
+    generator = torch.Generator().manual_seed(1)
+    seen = torch.zeros(N, dtype=torch.long)
+    for step in range(60):
+        if step == 20:
+            _dive(one), _dive(two)
+        action = _actions(step, one.task.action_dim, generator)
+        fused = one.step_tensors(action, with_state=False)
+        staged = two._step_glued(action, with_state=False)
+        for name, a, b in zip(fused._fields, fused, staged, strict=True):
+            if a is not None:
+                assert torch.equal(a, b), (step, name)
+        _assert_same(one, two)
+        if step == 20:  # the dive ends on the ground (most of them with the CG: the crash state)
+            crashed, x = one.sim.crashed, one.sim.x
+            assert int(crashed.sum()) >= 2
+            assert (fused.reason[crashed] == TERMINATION_CODE["ground_contact"]).all()
+            assert (x[crashed, S.DOWN_INDEX] == 0).all() and (x[crashed, S.VELOCITY] == 0).all()
+        seen = torch.maximum(seen, fused.reason)
+        done = (fused.reason > 0) | fused.truncated
+        if bool(done.any()):
+            one.reset_tensors(done), two.reset_tensors(done)
+    assert int(seen.max()) > 0  # terminations (ground contact, NaN actions) happened and matched
+
+
+def test_the_full_env_checks_the_derived_state_too() -> None:
+    """Not lean: the step publishes the state, and a derived field that is not finite terminates the row
+    as on the staged path."""
+    env = make_env("altitude", "volantex_ranger", num_envs=4, backend="warp", seed=0)
+    env.reset()
+    env.sim.x[2, S.VELOCITY.start] = float("nan")
+    out = env.step_tensors(torch.zeros(4, 2))
+    assert out.non_finite.tolist() == [False, False, True, False]
+    assert out.reason[2] == env.termination_reasons.index("non_finite")
+    assert torch.isfinite(out.observation).all() and torch.isfinite(out.reward).all()
+
+
+def test_the_one_launch_step_applies_only_where_it_reproduces_the_env() -> None:
+    assert make_env("altitude", num_envs=2, backend="warp", seed=0).env_stepper() is not None
+    assert make_env("altitude", num_envs=2, backend="torch", seed=0).env_stepper() is None
+    assert make_env("altitude", num_envs=2, backend="warp", seed=0, fused=False).env_stepper() is None
+
+    class Scaled(AltitudeTask):
+        def command(self, action: torch.Tensor) -> torch.Tensor:
+            return super().command(0.5 * action)
+
+    env = make_env("altitude", num_envs=2, backend="warp", seed=0)
+    env.task.__class__ = Scaled
+    env.__dict__.pop("_env_step", None)
+    assert env.env_stepper() is None
+
+
+def test_the_step_follows_a_new_parameter_set_and_horizon() -> None:
+    one, two = _pair("altitude")
+    zero = torch.zeros(N, 2)
+    one.step_tensors(zero), two._step_glued(zero, with_state=False)
+    for env in (one, two):  # a new parameters object (heavier aircraft) and a shorter horizon
+        params = env.sim.params
+        env.sim.params = type(params)(**{**vars(params), "mass": params.mass * 1.3})
+        env.max_episode_steps = 3
+    for _ in range(3):
+        fused, staged = one.step_tensors(zero), two._step_glued(zero, with_state=False)
+        assert torch.equal(fused.observation, staged.observation)
+    assert fused.truncated.all() and torch.equal(fused.truncated, staged.truncated)
+    _assert_same(one, two)
+
+
+def test_the_crash_state_in_the_kernel_equals_its_torch_twin() -> None:
+    kernel = Simulator("volantex_ranger", num_envs=6, backend="warp", seed=0)
+    twin = Simulator("volantex_ranger", num_envs=6, backend="warp", seed=0, stop_at_ground=False)
+    for sim in (kernel, twin):
+        sim.x[:3, S.DOWN_INDEX] = -0.5
+        sim.x[:3, S.VELOCITY.start + 2] = 15.0
+    before = torch.empty_like(twin.x)
+    command = kernel.command.clone()
+    for _ in range(4):
+        kernel.step(command, substeps=5)
+        before.copy_(twin.x)
+        twin.step(command, substeps=5)
+        twin.engine.stop_crashed(before)
+        assert torch.equal(kernel.x, twin.x) and torch.equal(kernel.crashed, twin.crashed)
+    assert kernel.crashed.tolist() == [True] * 3 + [False] * 3
+    assert (kernel.x[:3, S.DOWN_INDEX] == 0).all() and (kernel.x[:3, S.VELOCITY] == 0).all()
+
+
+@pytest.mark.parametrize("task", ["altitude", "attitude"])
+def test_the_gymnasium_numpy_step_equals_the_tensor_core(task: str) -> None:
+    fast, core = (CoreAircraftEnv(task, "volantex_ranger", seed=2) for _ in range(2))
+    assert fast.core.numpy_step is not None
+    core.core.numpy_step = None  # the tensor core's general path
+    rng = np.random.default_rng(0)
+    for env in (fast, core):
+        env.reset(seed=4)
+    for step in range(80):
+        action = rng.uniform(-1.2, 1.2, fast.action_space.shape)
+        if step % 9 == 4:
+            action[0] = np.nan
+        action = action if step % 2 else action.astype(np.float32)
+        one, two = fast.step(action), core.step(action)
+        np.testing.assert_array_equal(one[0], two[0])
+        assert one[1:4] == two[1:4]
+        assert one[4].keys() == two[4].keys()
+        for key in one[4]:
+            np.testing.assert_array_equal(one[4][key], two[4][key])
+        if one[2] or one[3]:
+            fast.reset(), core.reset()
