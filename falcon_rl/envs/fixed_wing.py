@@ -313,12 +313,13 @@ class FixedWingEnv(EnvBase):
         refuse_bad_action(action, self.config.num_envs, self.task.action_dim)
         assert isinstance(action, torch.Tensor)
         observation, reward, reason, truncated, non_finite = stepper(action)
-        state = self.sim.state if with_state and not self.config.lean else None
-        if copy or state is not None:
+        state = None
+        if copy or (with_state and not self.config.lean):
             observation, reward, reason = observation.clone(), reward.clone(), reason.clone()
             truncated, non_finite = truncated.clone(), non_finite.clone()
-        if state is not None:  # the derived state is checked too, as on the other paths
-            extra = ~_finite_rows(state, observation, reward)
+        if with_state and not self.config.lean:  # the derived state is checked too, as on the other paths
+            state, derived = self.sim.state_and_derived()
+            extra = ~torch.isfinite(derived).all(-1)  # the kernel checked the rest
             non_finite |= extra
             reason.masked_fill_(extra, NON_FINITE)
             truncated &= ~extra

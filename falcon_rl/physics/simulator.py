@@ -369,8 +369,13 @@ class Simulator:
         coefficients, thrust, contact, Euler angles) and the diagnostics (aero force and moment, thrust
         per motor [N, M], ground-effect h/b and factors) come from the engine
         (``derived.DERIVED_FIELDS``, on warp one kernel launch)."""
+        return self.state_and_derived()[0]
+
+    def state_and_derived(self) -> tuple[TensorDict, torch.Tensor]:
+        """(:attr:`state`, the [N, DERIVED_WIDTH] derived columns its derived fields are views of)."""
         x = self.x.clone()  # one copy; the fields are views of it (and of one copy of the derived state)
-        derived = split_derived(self.engine.derived().clone(), copy=False)
+        columns = self.engine.derived().clone()
+        derived = split_derived(columns, copy=False)
         return TensorDict(
             {
                 "position_ned": x[:, S.POSITION],
@@ -389,4 +394,4 @@ class Simulator:
             },
             batch_size=[self.num_envs],
             device=self.device,
-        )
+        ), columns

@@ -281,12 +281,19 @@ class QNet(nn.Module):
 
 
 # ---------------------------------------------------------------------------------------- env
+#: ``make_env`` options that put a robustness transform over the env (some read the published state).
+ROBUSTNESS_OPTIONS: tuple[str, ...] = ("sensors", "obs_delay_ms", "action_delay_ms", "randomize")
+
+
 def make_train_env(cfg: TrainConfig, num_envs: int | None = None, seed_offset: int = 0) -> TransformedEnv:
     """The task env with a RewardSum transform ("episode_reward" for the logs), without the
-    ("state", ...) and ("task", ...) entries (learning reads "observation" only)."""
+    ("state", ...) and ("task", ...) entries (learning reads "observation" only): built ``lean`` (it
+    publishes none) unless a robustness transform over it reads the state."""
     options = dict(cfg.env_options)
     if cfg.episode_seconds is not None:
         options["episode_seconds"] = cfg.episode_seconds
+    if not any(options.get(name) is not None for name in ROBUSTNESS_OPTIONS):
+        options.setdefault("lean", True)
     try:
         base = make_env(cfg.task, cfg.airframe, num_envs=num_envs or cfg.num_envs, backend=cfg.backend,
                         device=cfg.device, seed=cfg.seed + seed_offset, **options)
@@ -295,7 +302,8 @@ def make_train_env(cfg: TrainConfig, num_envs: int | None = None, seed_offset: i
     unused = [key for key in base.observation_spec.keys(True, True) if key[0] in ("state", "task")]
     if not isinstance(base, TransformedEnv):
         base = TransformedEnv(base)  # robustness transforms come as one; append instead of nesting
-    base.append_transform(ExcludeTransform(*unused))
+    if unused:
+        base.append_transform(ExcludeTransform(*unused))
     base.append_transform(RewardSum())
     return base
 
