@@ -11,7 +11,13 @@ import torch
 from falcon_rl import Simulator
 from falcon_rl.cli import main
 from falcon_rl.physics._warp import warp_available
-from falcon_rl.physics.warp_backend import CHUNKS_PER_THREAD, MIN_ENVS_PER_THREAD, cpu_slices
+from falcon_rl.physics.warp_backend import (
+    CHUNKS_PER_THREAD,
+    MIN_ENVS_PER_THREAD,
+    available_cores,
+    cpu_slices,
+    cpu_thread_count,
+)
 
 needs_warp = pytest.mark.skipif(not warp_available(), reason="warp-lang not installed")
 
@@ -25,6 +31,14 @@ def test_cpu_slices_cover_the_batch_once():
     assert len(cpu_slices(MIN_ENVS_PER_THREAD - 1, None)) == 1  # small batches stay on one thread
     assert len(cpu_slices(3, 8)) == 3  # at most one chunk per env
     assert len(cpu_slices(4096, 2)) == 2 * CHUNKS_PER_THREAD  # threads take chunks from a queue
+
+
+def test_sub_steps_count_as_work_when_the_batch_is_split():
+    """A launch of 5 physics sub-steps per env (an env step) is split at a fifth of the envs."""
+    small = 2 * MIN_ENVS_PER_THREAD // 5 + 1
+    assert cpu_thread_count(small, None) == 1
+    assert cpu_thread_count(small, None, substeps=5) == min(available_cores(), 2)
+    assert cpu_slices(small, 2, substeps=5) == cpu_slices(small, 2)  # explicit threads win
 
 
 def _perturbed(sim: Simulator) -> None:

@@ -38,7 +38,8 @@ from .engine import Engine, EngineSetup
 from .params import bind_warp_params
 from .state import WARP_MAX_MOTORS
 
-#: Smallest CPU slice worth a thread of its own (below it the thread hand-off costs more than it saves).
+#: Smallest CPU slice worth a thread of its own, in envs x physics sub-steps per launch (below it the thread
+#: hand-off costs more than it saves).
 MIN_ENVS_PER_THREAD = 512
 #: Chunks per thread: the threads take chunks from a shared queue, so a core slowed by another process
 #: hands its remaining chunks to the others instead of holding back the whole step.
@@ -55,18 +56,19 @@ def available_cores() -> int:
         return os.cpu_count() or 1
 
 
-def cpu_thread_count(num_envs: int, threads: int | None) -> int:
-    """Threads that step a CPU batch: ``threads``, or with None one per available core with at
-    least :data:`MIN_ENVS_PER_THREAD` envs each (at least one, at most one per env)."""
+def cpu_thread_count(num_envs: int, threads: int | None, substeps: int = 1) -> int:
+    """Threads that step a CPU batch of launches of ``substeps`` physics steps: ``threads``, or with
+    None one per available core with at least :data:`MIN_ENVS_PER_THREAD` envs x sub-steps each (at
+    least one, at most one per env)."""
     if threads is None:
-        threads = min(available_cores(), num_envs // MIN_ENVS_PER_THREAD)
+        threads = min(available_cores(), num_envs * substeps // MIN_ENVS_PER_THREAD)
     return max(1, min(threads, num_envs))
 
 
-def cpu_slices(num_envs: int, threads: int | None) -> list[tuple[int, int]]:
-    """(offset, count) chunks of a CPU batch: one for a single thread, else
-    :data:`CHUNKS_PER_THREAD` per thread (at most one per env), in env order."""
-    count = cpu_thread_count(num_envs, threads)
+def cpu_slices(num_envs: int, threads: int | None, substeps: int = 1) -> list[tuple[int, int]]:
+    """(offset, count) chunks of a CPU batch (launches of ``substeps`` physics steps): one for a
+    single thread, else :data:`CHUNKS_PER_THREAD` per thread (at most one per env), in env order."""
+    count = cpu_thread_count(num_envs, threads, substeps)
     chunks = 1 if count == 1 else min(num_envs, count * CHUNKS_PER_THREAD)
     bounds = [num_envs * k // chunks for k in range(chunks + 1)]
     return [(lo, hi - lo) for lo, hi in itertools.pairwise(bounds)]
@@ -259,10 +261,21 @@ class WarpEngine(Engine):
         self.run(self._evaluate_launches)
         return self._evaluation
 
-    def run(self, launches: list[Any]) -> None:
-        """Replay one launch, or the CPU chunks' launches from a queue that ``self.threads`` threads
-        (this one and pool workers) drain in parallel: the engine's own launches, or ones recorded per
-        ``self.slices`` by a task's fused step, on torch's current CUDA stream."""
+    def split(self, substeps: int) -> tuple[int, list[tuple[int, int]]]:
+        """(threads, CPU slices) for launches of ``substeps`` physics steps each (the option
+        ``cpu_threads`` kept); one slice on CUDA."""
+        if self._is_cuda:
+            return 1, [(0, self.num_envs)]
+        threads = self.setup.options.get("cpu_threads")
+        return (cpu_thread_count(self.num_envs, threads, substeps),
+                cpu_slices(self.num_envs, threads, substeps))
+
+    def run(self, launches: list[Any], threads: int | None = None) -> None:
+        """Replay one launch, or the CPU chunks' launches from a queue that ``threads`` threads (this
+        one and pool workers; None: ``self.threads``) drain in parallel: the engine's own launches, or
+        ones recorded per ``self.slices`` (or per :meth:`split`) by a task's fused step or an env's
+        step, on torch's current CUDA stream."""
+        threads = self.threads if threads is None else threads
         if len(launches) == 1:
             self._replay(launches[0])
             return
@@ -278,7 +291,7 @@ class WarpEngine(Engine):
                     return
                 launch.launch()
 
-        pending = [_pool().submit(drain) for _ in range(self.threads - 1)]
+        pending = [_pool().submit(drain) for _ in range(threads - 1)]
         drain()
         for future in pending:
             future.result()

@@ -172,6 +172,7 @@ class FusedEnvStep:
         self.non_finite = torch.zeros(n, device=device, dtype=torch.bool)
         self.channels = torch.as_tensor(task.action_channels, device=device, dtype=torch.int32)
         self._launches: list[Any] = []
+        self._threads = 1
         self._key: tuple[Any, ...] = ()
 
     def _binding_key(self) -> tuple[Any, ...]:
@@ -199,9 +200,10 @@ class FusedEnvStep:
         v.max_episode_steps = int(env.max_episode_steps)
         inputs = [views, params, settings, int(env.config.decimation), int(env.sim.stop_at_ground), v,
                   *self.task_step.kernel_inputs()]
+        self._threads, slices = engine.split(int(env.config.decimation))  # the sub-steps are work too
         self._launches = [wp.launch(self.kernel, dim=count, inputs=[*inputs, offset],
                                     device=engine.device, record_cmd=True)
-                          for offset, count in engine.slices]
+                          for offset, count in slices]
         self._key = self._binding_key()
 
     def launch(self) -> None:
@@ -212,7 +214,7 @@ class FusedEnvStep:
         self.task_step.draw()
         engine = self.env.sim.engine
         engine.bump_turbulence_counter(self.env.config.decimation)
-        engine.run(self._launches)
+        engine.run(self._launches, self._threads)
 
     def __call__(self, action: torch.Tensor) -> tuple[torch.Tensor, ...]:
         """(observation [N, D], reward [N], reason [N] long, truncated [N], non_finite [N]) of the step
