@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from .airframe_tables import AERO_OUTPUTS, TABLE_OUTPUTS, TABLE_VARIABLES, TableSet, TableTerm, parse_terms
 from .constants import G0
 
 #: Largest power of one variable in an aero monomial (the Warp twin tabulates powers 0..6).
@@ -30,6 +31,10 @@ RATE_NAMES: tuple[str, ...] = ("p", "q", "r")
 SURFACES: tuple[str, ...] = ("elevator", "aileron", "rudder")
 CONTROL_NAMES: tuple[str, ...] = (*SURFACES, "throttle")
 POWERPLANTS: tuple[str, ...] = ("electric", "piston")
+#: Aero model kinds: monomial tables only, or table terms (``airframe_tables``) on top of optional monomials.
+AERO_KINDS: tuple[str, ...] = ("monomial", "tabulated")
+#: Propeller models: momentum theory (discharge-velocity form), or the airframe's sampled thrust map.
+MOTOR_MODELS: tuple[str, ...] = ("momentum", "thrust_map")
 #: Largest magnitude of any number in an airframe file (1e300 is a typo, and it would overflow the physics).
 MAX_MAGNITUDE = 1e9
 #: Largest magnitude of an aero coefficient of a monomial or rate term.
@@ -92,6 +97,7 @@ class Motor:
     torque_speed_constant: float  # k_omega, rad/s at full throttle
     time_constant: float  # s, first-order throttle lag
     powerplant: str
+    model: str = "momentum"  # MOTOR_MODELS; "thrust_map" reads thrust and torque from Airframe.tables
 
 
 @dataclass(frozen=True)
@@ -114,6 +120,7 @@ class AeroModel:
     alpha_range: tuple[float, float]
     beta_range: tuple[float, float]
     alpha_stall: float
+    kind: str = "monomial"  # AERO_KINDS
 
 
 @dataclass(frozen=True)
@@ -131,6 +138,8 @@ class Airframe:
     actuators: dict[str, Actuator]
     envelope: Envelope
     provenance: dict[str, Any] = field(default_factory=dict)
+    #: Table terms (aero ``aero.tables`` and the propulsion ``thrust_map``), sorted by output.
+    tables: TableSet = field(default_factory=TableSet)
 
     @property
     def num_motors(self) -> int:
@@ -362,8 +371,8 @@ def parse_airframe(raw: Any, path: Path) -> Airframe:
     display_name = r.text(raw, "display_name", "", name)
     geometry = _parse_geometry(r, raw)
     mass, inertia = _parse_mass(r, raw)
-    aero = _parse_aero(r, raw)
-    motors = _parse_propulsion(r, raw)
+    aero, aero_terms = _parse_aero(r, raw)
+    motors, map_terms = _parse_propulsion(r, raw)
     actuators = _parse_actuators(r, raw)
     envelope = _parse_envelope(r, raw, aero)
     provenance = r.get(raw, "provenance", "", dict)
@@ -381,6 +390,7 @@ def parse_airframe(raw: Any, path: Path) -> Airframe:
         actuators=actuators,
         envelope=envelope,
         provenance=provenance,
+        tables=TableSet(tuple(aero_terms + map_terms)).sorted(),
     )
 
 
@@ -430,10 +440,19 @@ def _parse_mass(r: _Reader, raw: dict) -> tuple[float, np.ndarray]:
     return mass, inertia
 
 
-def _parse_aero(r: _Reader, raw: dict) -> AeroModel:
-    keys = {"coefficients", "oswald_efficiency", "alpha_range_rad", "beta_range_rad",
+def _parse_aero(r: _Reader, raw: dict) -> tuple[AeroModel, list[TableTerm]]:
+    keys = {"kind", "coefficients", "tables", "oswald_efficiency", "alpha_range_rad", "beta_range_rad",
             "alpha_stall_rad", "notes"}
     a = r.section(raw, "aero", "", keys)
+    kind = r.get(a, "kind", "aero", str, "monomial")
+    if kind not in AERO_KINDS:
+        raise r.fail("aero.kind", f"must be one of {list(AERO_KINDS)}, got {kind!r}")
+    if kind == "monomial" and "tables" in a:
+        raise r.fail("aero.tables", "only an aero model of kind 'tabulated' has tables")
+    table_terms = parse_terms(r, a.get("tables"), "aero.tables", TABLE_OUTPUTS[:AERO_OUTPUTS]) \
+        if kind == "tabulated" else []
+    if kind == "tabulated":
+        _check_tables(r, table_terms)
     oswald = r.positive(a, "oswald_efficiency", "aero")
     if oswald > 1.0:
         raise r.fail("aero.oswald_efficiency", f"must be in (0, 1], got {oswald}")
@@ -442,11 +461,14 @@ def _parse_aero(r: _Reader, raw: dict) -> AeroModel:
     alpha_stall = r.positive(a, "alpha_stall_rad", "aero")
     if not alpha_range[0] < alpha_stall <= alpha_range[1] * 1.5:
         raise r.fail("aero.alpha_stall_rad", f"must lie in the alpha range {alpha_range}")
-    coeffs = r.section(a, "coefficients", "aero", set(AERO_COEFFICIENTS))
+    coeffs = r.section(a, "coefficients", "aero", set(AERO_COEFFICIENTS)) if kind == "monomial" or (
+        "coefficients" in a) else {}
     monomials: dict[tuple[int, ...], np.ndarray] = {}
     rates = np.zeros((len(AERO_COEFFICIENTS), len(RATE_NAMES)))
     for k, cname in enumerate(AERO_COEFFICIENTS):
         where = f"aero.coefficients.{cname}"
+        if kind == "tabulated" and cname not in coeffs:
+            continue
         entry = r.get(coeffs, cname, "aero.coefficients", dict)
         r.no_unknown(entry, {"terms", "rates"}, where)
         terms = r.get(entry, "terms", where, list)
@@ -469,13 +491,26 @@ def _parse_aero(r: _Reader, raw: dict) -> AeroModel:
         r.no_unknown(rate_entry, set(RATE_NAMES), f"{where}.rates")
         for j, rname in enumerate(RATE_NAMES):
             rates[k, j] = _coefficient(r, rate_entry, rname, f"{where}.rates", 0.0)
-    if not monomials:
+    if not monomials and kind == "monomial":
         raise r.fail("aero.coefficients", "no monomial terms at all")
+    if not monomials:  # a tabulated model without monomials binds one zero term
+        monomials[(0,) * len(AERO_VARIABLES)] = np.zeros(len(AERO_COEFFICIENTS))
     keys_sorted = sorted(monomials)
     exponents = np.array(keys_sorted, dtype=np.int64).reshape(-1, len(AERO_VARIABLES))
     table = np.stack([monomials[k] for k in keys_sorted])
-    _check_not_empty(r, exponents, table, rates)
-    return AeroModel(exponents, table, rates, oswald, alpha_range, beta_range, alpha_stall)
+    if kind == "monomial":
+        _check_not_empty(r, exponents, table, rates)
+    return AeroModel(exponents, table, rates, oswald, alpha_range, beta_range, alpha_stall, kind), table_terms
+
+
+def _check_tables(r: _Reader, terms: list[TableTerm]) -> None:
+    """Refuse a tabulated model with no lift term in alpha or no drag term."""
+    alpha = TABLE_VARIABLES.index("alpha")
+    lift = [t for t in terms if t.output == 0 and (alpha in t.variables or t.multiply[alpha])]
+    if not lift:
+        raise r.fail("aero.tables", "needs a CL term in alpha (an axis or a multiplier)")
+    if not any(t.output == 1 for t in terms):
+        raise r.fail("aero.tables", "needs a CD term")
 
 
 def _coefficient(r: _Reader, data: dict, key: str, where: str, default: Any = ...) -> float:
@@ -504,14 +539,16 @@ def _check_not_empty(r: _Reader, exponents: np.ndarray, table: np.ndarray, rates
                                              f"{cd0:g})")
 
 
-def _parse_propulsion(r: _Reader, raw: dict) -> tuple[Motor, ...]:
-    p = r.section(raw, "propulsion", "", {"motors"})
+def _parse_propulsion(r: _Reader, raw: dict) -> tuple[tuple[Motor, ...], list[TableTerm]]:
+    p = r.section(raw, "propulsion", "", {"motors", "thrust_map"})
+    map_terms = parse_terms(r, p["thrust_map"], "propulsion.thrust_map", TABLE_OUTPUTS[AERO_OUTPUTS:]) \
+        if "thrust_map" in p else []
     motors_raw = r.get(p, "motors", "propulsion", list)
     if not motors_raw:
         raise r.fail("propulsion.motors", "needs at least one motor")
     keys = {"name", "position_m", "thrust_axis", "spin", "disk_area_m2", "thrust_coefficient",
             "discharge_speed_mps", "torque_coefficient", "torque_speed_constant_rad_s",
-            "time_constant_s", "powerplant"}
+            "time_constant_s", "powerplant", "model"}
     motors = []
     for i, m in enumerate(motors_raw):
         where = f"propulsion.motors[{i}]"
@@ -531,21 +568,29 @@ def _parse_propulsion(r: _Reader, raw: dict) -> tuple[Motor, ...]:
         torque = r.get(m, "torque_coefficient", where, float, 0.0)
         if torque < 0:
             raise r.fail(f"{where}.torque_coefficient", f"must be >= 0, got {torque}")
+        model = r.get(m, "model", where, str, "momentum")
+        if model not in MOTOR_MODELS:
+            raise r.fail(f"{where}.model", f"must be one of {list(MOTOR_MODELS)}, got {model!r}")
+        if model == "thrust_map" and not any(t.output == TABLE_OUTPUTS.index("thrust") for t in map_terms):
+            raise r.fail(f"{where}.model", "a thrust_map motor needs a thrust term in propulsion.thrust_map")
+        # A thrust-map motor reads no momentum-theory constant: they default to 1 (unused).
+        unused = 1.0 if model == "thrust_map" else ...
         ax = tuple(float(v) for v in axis / norm)
         motors.append(Motor(
             name=r.text(m, "name", where, f"motor{i}"),
             position=tuple(r.vector(m, "position_m", where, 3)),  # type: ignore[arg-type]
             thrust_axis=ax,  # type: ignore[arg-type]
             spin=spin,
-            disk_area=r.positive(m, "disk_area_m2", where),
-            thrust_coefficient=r.positive(m, "thrust_coefficient", where),
-            discharge_speed=r.positive(m, "discharge_speed_mps", where),
+            disk_area=r.positive(m, "disk_area_m2", where, unused),
+            thrust_coefficient=r.positive(m, "thrust_coefficient", where, unused),
+            discharge_speed=r.positive(m, "discharge_speed_mps", where, unused),
             torque_coefficient=torque,
             torque_speed_constant=r.get(m, "torque_speed_constant_rad_s", where, float, 0.0),
             time_constant=r.positive(m, "time_constant_s", where),
             powerplant=plant,
+            model=model,
         ))
-    return tuple(motors)
+    return tuple(motors), map_terms
 
 
 def _parse_actuators(r: _Reader, raw: dict) -> dict[str, Actuator]:

@@ -104,10 +104,15 @@ def step_contents(sim: Simulator) -> str:
     """One line describing what a single ``Simulator.step`` computes."""
     stages = {"rk4": 4, "euler": 1}.get(sim.integrator, 0)
     integ = f"{sim.integrator} ({stages} derivative evaluations)" if stages else "solve_ivp RK45"
-    ge = {0: "off", 1: "induced-drag form", 2: "paper form"}[int(sim.params.ground_effect_mode[0])]
-    return (f"6DoF rigid body + ISA atmosphere + monomial aero ({sim.params.aero_exponents.shape[0]} terms, "
-            f"rates) + Phillips-Hunsaker ground effect ({ge}) + {sim.airframe.num_motors} motor(s) "
-            f"momentum-theory thrust + 2nd/1st-order actuators; {integ}, dt = {sim.dt:g} s, "
+    ge = {0: "off", 1: "induced-drag form", 2: "paper form", 3: "JSBSim tables"}[
+        int(sim.params.ground_effect_mode[0])]
+    af = sim.airframe
+    aero = (f"tabulated aero ({len(af.tables.terms)} table terms)" if af.aero.kind == "tabulated" else
+            f"monomial aero ({sim.params.aero_exponents.shape[0]} terms, rates)")
+    thrust = "thrust-map" if any(m.model == "thrust_map" for m in af.motors) else "momentum-theory"
+    return (f"6DoF rigid body + ISA atmosphere + {aero} + Phillips-Hunsaker ground effect ({ge}) + "
+            f"{af.num_motors} motor(s) {thrust} thrust + 2nd/1st-order actuators; {integ}, "
+            f"dt = {sim.dt:g} s, "
             f"quaternion renormalisation and actuator saturation; airframe {sim.airframe.name}")
 
 

@@ -1,4 +1,5 @@
-"""``falcon-rl airframe derive GEOMETRY``: derive an airframe JSON from a geometry source file."""
+"""``falcon-rl airframe derive GEOMETRY``: derive an airframe JSON from a geometry source file;
+``falcon-rl airframe import-jsbsim NAME|PATH``: import a JSBSim aircraft as an airframe JSON."""
 
 from __future__ import annotations
 
@@ -10,8 +11,9 @@ from pathlib import Path
 from ._common import UsageError, emit, inside, output_file, printable
 
 NAME = "airframe"
-HELP = "airframe tools: 'derive' an airframe JSON from a geometry source with AeroSandbox"
-ACTIONS = ("derive",)
+HELP = ("airframe tools: 'derive' an airframe JSON from a geometry source with AeroSandbox; 'import-jsbsim' "
+        "a JSBSim aircraft")
+ACTIONS = ("derive", "import-jsbsim")
 
 #: What reading a malformed geometry file can raise besides GeometryError (a ValueError): the file cannot
 #: be read or decoded, nests too deep, or holds values of the wrong JSON type where the loader indexes them.
@@ -19,10 +21,12 @@ _MALFORMED = (OSError, UnicodeDecodeError, RecursionError, TypeError, KeyError, 
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("action", choices=ACTIONS, help="derive: sweep, fit and write the airframe JSON")
-    parser.add_argument("geometry", help="geometry source file, e.g. airframes/geometry/navion.json")
+    parser.add_argument("action", choices=ACTIONS, help="derive: sweep, fit and write the airframe JSON; "
+                                                        "import-jsbsim: read a JSBSim aircraft")
+    parser.add_argument("geometry", help="derive: geometry source file, e.g. airframes/geometry/navion.json; "
+                                         "import-jsbsim: JSBSim model name (c172p) or aircraft XML path")
     parser.add_argument("--out", default=None, help="airframe JSON to write (default: airframes/NAME.json "
-                                                    "beside the geometry folder)")
+                                                    "beside the geometry folder; import-jsbsim: NAME.json)")
     parser.add_argument("--plot", default=None,
                         help="PNG of sweep vs fit (default: runs/derive/NAME_fit.png)")
 
@@ -42,6 +46,8 @@ def _geometry_name(path: Path) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.action == "import-jsbsim":
+        return import_jsbsim_command(args)
     geometry = Path(args.geometry)
     if not geometry.is_file():
         raise UsageError(f"geometry file not found: {geometry}")
@@ -68,5 +74,36 @@ def run(args: argparse.Namespace) -> int:
     lines += [f"  {k:<3} {v['rms_held_out']:.3g} / {v['data_range']:.3g}  orders {v['orders']}"
               for k, v in residuals.items()]
     lines += [f"envelope: {doc['envelope']}"]
+    emit(args, summary, "\n".join(lines))
+    return 0
+
+
+def import_jsbsim_command(args: argparse.Namespace) -> int:
+    """Import, validate with the airframe reader, write and summarise."""
+    import json
+
+    if importlib.util.find_spec("jsbsim") is None:
+        raise UsageError("importing a JSBSim aircraft needs the jsbsim package: "
+                         "pip install 'falcon-rl[jsbsim]'")
+    from ..airframe import AirframeError, parse_airframe
+    from ..validation.jsbsim_import import JSBSimImportError, import_jsbsim
+
+    source = str(args.geometry)
+    stem = Path(source).stem if source.endswith(".xml") else source
+    out = output_file(args.out or f"{stem}.json", "--out")
+    try:
+        imported = import_jsbsim(source, name=out.stem)
+        parse_airframe(imported.document, out)
+    except (JSBSimImportError, AirframeError) as exc:
+        raise UsageError(str(exc)) from None
+    out.write_text(json.dumps(imported.document, indent=1) + "\n")
+    report = imported.report
+    summary = {"airframe": imported.document["name"], "out": str(out), "jsbsim_model": report["model"],
+               "terms": len(report["terms"]), "omitted": report["omitted"],
+               "envelope": imported.document["envelope"]}
+    lines = [f"{out.stem}: wrote {out} ({len(report['terms'])} table terms, thrust map from JSBSim's engine)"]
+    lines += [f"  {r['name']:<32} {r['output']:<3} axes {r.get('axes')} x {r.get('multiply')}  rms error "
+              f"{r['rms_error']:.2g} of {r['rms_coefficient']:.2g}" for r in report["terms"]]
+    lines += [f"  left out: {r['name']} ({r['reason']})" for r in report["omitted"]]
     emit(args, summary, "\n".join(lines))
     return 0

@@ -8,7 +8,14 @@ and the moments (about the CG) are body axes:
     F = qbar S [-C_D cos a + C_L sin a,  C_Y,  -C_D sin a - C_L cos a]
     M = qbar S [b C_l,  c C_m,  b C_n]
 
-Ground effect (see ``ground_effect.py``) scales C_L and the induced drag. The model switch
+A tabulated airframe (``aero.kind`` "tabulated") adds its table terms (``tables.py``): sums of 1-3D
+tables of alpha, beta (not clamped: each table clamps at its own edges), the deflections, rate_hat,
+Mach, airspeed, h/b and throttle, each times a monomial multiplier. A monomial airframe has no terms,
+so the same kernel runs every airframe.
+
+Ground effect (see ``ground_effect.py``) scales C_L and the induced drag (Phillips-Hunsaker, modes
+"induced" and "paper"), or, in mode "tables", the tables read the true h/b (JSBSim's kCLge/kCDge
+come across as table data); in every other mode the tables see h/b = H_OVER_B_FREE_AIR. The model switch
 ``no_rate_damping`` (``switches.ModelSwitches(rate_damping=False)``) sets rate_hat = 0 per env, so the
 rate derivatives contribute nothing.
 """
@@ -22,10 +29,32 @@ import torch
 
 from ..airframe import MAX_EXPONENT
 from ._warp import vector_type, warp_func, warp_struct, wp
-from .ground_effect import GE_INDUCED, GE_PAPER, influence_ratios, phillips_hunsaker_wp
+from .atmosphere import RHO_SEA_LEVEL
+from .constants import GAMMA, R_AIR, T0
+from .ground_effect import GE_INDUCED, GE_PAPER, GE_TABLES, influence_ratios, phillips_hunsaker_wp
 from .params import EXPONENT_BITS, EXPONENT_MASK, ModelParams, WarpParams
+from .tables import (
+    AIRSPEED,
+    ALPHA,
+    BETA,
+    DENSITY,
+    ELEVATOR,
+    H_OVER_B,
+    MACH,
+    P_HAT,
+    THROTTLE,
+    TableVars,
+    has_terms,
+    table_output_wp,
+    table_outputs,
+)
 
 MIN_AIRSPEED = 0.1  # m/s, floor for the non-dimensional rates
+#: h/b the tables see when ground effect is not in mode "tables" (beyond every ground-effect table).
+H_OVER_B_FREE_AIR = 100.0
+#: Sea-level speed of sound, m/s; in the ISA troposphere a = A0 (rho / rho0)^SOUND_DENSITY_EXPONENT.
+A0 = (GAMMA * R_AIR * T0) ** 0.5
+SOUND_DENSITY_EXPONENT = 0.5 / 4.255876
 
 
 @dataclass
@@ -75,6 +104,11 @@ def monomials(x: torch.Tensor, exponents: torch.Tensor) -> torch.Tensor:
     return picked.prod(dim=-1)
 
 
+def has_aero_tables(p: ModelParams) -> bool:
+    """Whether ``p`` has any aero table term."""
+    return has_terms(p, 0, 6)
+
+
 def aero_coefficients_oge(
     alpha: torch.Tensor, beta: torch.Tensor, surfaces: torch.Tensor, rates_hat: torch.Tensor,
     p: ModelParams,
@@ -91,6 +125,27 @@ def aero_coefficients_oge(
     return coeffs + (p.aero_rates * rates_hat.unsqueeze(1)).sum(dim=-1)
 
 
+def mach_number(airspeed: torch.Tensor, density: torch.Tensor) -> torch.Tensor:
+    """[N] Mach from airspeed [N] m/s and density [N] kg/m^3 (ISA troposphere: T follows rho)."""
+    return airspeed / (A0 * (density / RHO_SEA_LEVEL) ** SOUND_DENSITY_EXPONENT)
+
+
+def table_variables(alpha: torch.Tensor, beta: torch.Tensor, surfaces: torch.Tensor, rates_hat: torch.Tensor,
+                    airspeed: torch.Tensor, density: torch.Tensor, h_over_b: torch.Tensor,
+                    throttle: torch.Tensor) -> torch.Tensor:
+    """The variable vector [N, 13] of the table terms (``airframe_tables.TABLE_VARIABLES``) from [N]
+    alpha, beta (rad), airspeed (m/s), density (kg/m^3), h/b, throttle and [N, 3] surfaces, rates_hat."""
+    columns = [alpha, beta, *surfaces.unbind(-1), *rates_hat.unbind(-1), mach_number(airspeed, density),
+               airspeed, h_over_b, throttle.clamp(0.0, 1.0), density]
+    return torch.stack(columns, dim=-1)
+
+
+def tables_h_over_b(h_over_b: torch.Tensor, p: ModelParams) -> torch.Tensor:
+    """[N] the h/b the tables see: the true one in ground-effect mode "tables", else free air."""
+    free_air = torch.full_like(h_over_b, H_OVER_B_FREE_AIR)
+    return torch.where(p.ground_effect_mode == GE_TABLES, h_over_b, free_air)
+
+
 def apply_ground_effect(coeffs: torch.Tensor, h_over_b: torch.Tensor, p: ModelParams
                         ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
     """Scale C_L and C_D for ground effect per env mode.
@@ -100,7 +155,7 @@ def apply_ground_effect(coeffs: torch.Tensor, h_over_b: torch.Tensor, p: ModelPa
     cl_inf, cd_inf = coeffs[:, 0], coeffs[:, 1]
     kappa_l, kappa_d = influence_ratios(h_over_b, p.wing_constants, cl_inf)
     mode = p.ground_effect_mode
-    active = mode != 0
+    active = (mode == GE_INDUCED) | (mode == GE_PAPER)
     kappa_l = torch.where(active, kappa_l, torch.ones_like(kappa_l))
     kappa_d = torch.where(active, kappa_d, torch.ones_like(kappa_d))
     induced_factor = 1.0 / (torch.pi * p.oswald * p.aspect_ratio)
@@ -119,6 +174,7 @@ def apply_ground_effect(coeffs: torch.Tensor, h_over_b: torch.Tensor, p: ModelPa
 def aero_forces(
     airspeed: torch.Tensor, alpha: torch.Tensor, beta: torch.Tensor, omega_air: torch.Tensor,
     surfaces: torch.Tensor, density: torch.Tensor, h_over_b: torch.Tensor, p: ModelParams,
+    throttle: torch.Tensor | None = None,
 ) -> AeroOutput:
     """Body-axis aero force and moment about the CG.
 
@@ -127,6 +183,7 @@ def aero_forces(
         omega_air: [N, 3] body rates relative to the air mass (rad/s).
         surfaces: [N, 3] deflections (rad). density: [N] kg/m^3.
         h_over_b: [N] height of the wing quarter chord over span.
+        throttle: [N] first motor's throttle state in [0, 1] (table terms may read it), None for 0.
     """
     v = airspeed.clamp_min(MIN_AIRSPEED)
     half_over_v = 0.5 / v
@@ -134,6 +191,11 @@ def aero_forces(
     rates_hat = omega_air * lengths * half_over_v[:, None]
     rates_hat = rates_hat.masked_fill((p.no_rate_damping != 0).unsqueeze(-1), 0.0)
     coeffs = aero_coefficients_oge(alpha, beta, surfaces, rates_hat, p)
+    if has_aero_tables(p):
+        throttle = torch.zeros_like(airspeed) if throttle is None else throttle
+        x = table_variables(alpha, beta, surfaces, rates_hat, airspeed, density, tables_h_over_b(h_over_b, p),
+                            throttle)
+        coeffs = coeffs + table_outputs(x, p)[:, :6]
     coeffs, cdi, kappa_l, kappa_d = apply_ground_effect(coeffs, h_over_b, p)
     qs = 0.5 * density * airspeed**2 * p.wing_area
     cl, cd, cy = coeffs[:, 0], coeffs[:, 1], coeffs[:, 2]
@@ -200,9 +262,36 @@ def aero_coefficients_oge_wp(alpha: float, beta: float, surfaces: wp.vec3, rates
 
 
 @warp_func
+def table_variables_wp(alpha: float, beta: float, surfaces: wp.vec3, rates_hat: wp.vec3, airspeed: float,
+                       density: float, h_over_b: float, throttle: float) -> TableVars:
+    """The table variables of one env (twin of :func:`table_variables`)."""
+    x = TableVars()
+    x[ALPHA] = alpha
+    x[BETA] = beta
+    for k in range(3):
+        x[ELEVATOR + k] = surfaces[k]
+        x[P_HAT + k] = rates_hat[k]
+    x[MACH] = airspeed / (A0 * wp.pow(density / RHO_SEA_LEVEL, SOUND_DENSITY_EXPONENT))
+    x[AIRSPEED] = airspeed
+    x[H_OVER_B] = h_over_b
+    x[THROTTLE] = wp.clamp(throttle, 0.0, 1.0)
+    x[DENSITY] = density
+    return x
+
+
+@warp_func
 def aero_forces_wp(airspeed: float, alpha: float, beta: float, omega_air: wp.vec3, surfaces: wp.vec3,
                    density: float, h_over_b: float, p: WarpParams, i: int) -> AeroResultWp:
-    """Body-axis aero force and moment of env ``i`` (twin of :func:`aero_forces`)."""
+    """Body-axis aero force and moment of env ``i`` at zero throttle (twin of :func:`aero_forces`)."""
+    return aero_forces_throttle_wp(airspeed, alpha, beta, omega_air, surfaces, density, h_over_b, 0.0, p, i)
+
+
+@warp_func
+def aero_forces_throttle_wp(airspeed: float, alpha: float, beta: float, omega_air: wp.vec3, surfaces: wp.vec3,
+                            density: float, h_over_b: float, throttle: float, p: WarpParams, i: int
+                            ) -> AeroResultWp:
+    """Body-axis aero force and moment of env ``i``, ``throttle`` the first motor's (twin of
+    :func:`aero_forces`)."""
     span = p.span[i]
     chord = p.chord[i]
     half_over_v = 0.5 / wp.max(airspeed, MIN_AIRSPEED)
@@ -210,12 +299,19 @@ def aero_forces_wp(airspeed: float, alpha: float, beta: float, omega_air: wp.vec
     if p.no_rate_damping[i] != 0:
         rates_hat = wp.vec3(0.0, 0.0, 0.0)
     c = aero_coefficients_oge_wp(alpha, beta, surfaces, rates_hat, p, i)
+    mode = p.ground_effect_mode[i]
+    if p.table_output_start[6] > 0:
+        table_hb = H_OVER_B_FREE_AIR
+        if mode == GE_TABLES:
+            table_hb = h_over_b
+        x = table_variables_wp(alpha, beta, surfaces, rates_hat, airspeed, density, table_hb, throttle)
+        for k in range(6):
+            c[k] = c[k] + table_output_wp(x, p, i, k)
     cl_inf = c[0]
     cd_inf = c[1]
-    mode = p.ground_effect_mode[i]
     kappa_l = float(1.0)  # noqa: UP018 (a mutable Warp local)
     kappa_d = float(1.0)  # noqa: UP018 (a mutable Warp local)
-    if mode != 0:
+    if mode == GE_INDUCED or mode == GE_PAPER:  # noqa: SIM109 (Warp has no tuple membership)
         kappas = phillips_hunsaker_wp(h_over_b, p.wing_constants[i], cl_inf)
         kappa_l = kappas[0]
         kappa_d = kappas[1]

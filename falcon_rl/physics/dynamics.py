@@ -27,7 +27,7 @@ from .actuators import (
     saturate,
     saturate_wp,
 )
-from .aero import aero_forces, aero_forces_wp
+from .aero import aero_forces, aero_forces_throttle_wp
 from .atmosphere import model_density, model_density_wp
 from .derived import MAX_MOTORS, pack_derived
 from .params import ModelParams, Vec6, WarpParams
@@ -106,9 +106,10 @@ def evaluate(x: torch.Tensor, p: ModelParams, air: AirInputs | None = None) -> E
     wing_height = height - (rot[:, 2, :] * p.wing_quarter_chord).sum(-1)
     density = model_density(height, p.constant_density)
     surfaces = torch.minimum(torch.maximum(x[:, S.SURFACE_POSITION], p.surface_min), p.surface_max)
-    aero = aero_forces(airspeed, alpha, beta, omega_air, surfaces, density,
-                       wing_height / p.span, p)
     throttle = x[:, S.THROTTLE_START:]
+    first_throttle = throttle[:, 0] if throttle.shape[1] else torch.zeros_like(height)
+    aero = aero_forces(airspeed, alpha, beta, omega_air, surfaces, density,
+                       wing_height / p.span, p, first_throttle)
     f_prop, m_prop, thrust = propulsion_forces(v_air, throttle, density, p)
     return Evaluation(
         force_body=aero.force_body + f_prop,
@@ -251,8 +252,8 @@ def evaluate_wp(x: StateVec, wind_ned: wp.vec3, gust_velocity_body: wp.vec3, gus
     surfaces = wp.vec3(wp.min(wp.max(x[SURFACE_POSITION_START], lo[0]), hi[0]),
                        wp.min(wp.max(x[SURFACE_POSITION_START + 1], lo[1]), hi[1]),
                        wp.min(wp.max(x[SURFACE_POSITION_START + 2], lo[2]), hi[2]))
-    aero = aero_forces_wp(air[0], air[1], air[2], omega_air, surfaces, density, wing_height / p.span[i],
-                          p, i)
+    aero = aero_forces_throttle_wp(air[0], air[1], air[2], omega_air, surfaces, density,
+                                   wing_height / p.span[i], x[S.THROTTLE_START], p, i)
     prop = propulsion_forces_wp(v_air, x, density, p, i)
     ev = EvaluationWp()
     ev.rotation = rot

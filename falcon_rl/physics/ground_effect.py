@@ -19,6 +19,8 @@ How the factors enter the aero model (``aero.py``), per env by ``ground_effect_m
   (only the induced part of the drag changes, parasitic drag is untouched).
 - ``GE_PAPER``: the reference paper's form C_D = C_D_inf (1 - mu_D)(1 + mu_L)^2 on the whole drag,
   with mu_D = 1 - kappa_D and mu_L = kappa_L - 1. It overstates the saving at cruise.
+- ``GE_TABLES``: no Phillips-Hunsaker correction; the airframe's table terms read the true h/b (an
+  imported JSBSim aircraft's kCLge/kCDge tables). Airframes without such tables fly as with ``GE_OFF``.
 - ``GE_OFF``: no correction.
 """
 
@@ -29,12 +31,12 @@ import torch
 from ._warp import vector_type, warp_func, wp
 
 H_OVER_B_MIN = 0.05
-GE_OFF, GE_INDUCED, GE_PAPER = 0, 1, 2
-GE_MODES = {"off": GE_OFF, "induced": GE_INDUCED, "paper": GE_PAPER}
+GE_OFF, GE_INDUCED, GE_PAPER, GE_TABLES = 0, 1, 2, 3
+GE_MODES = {"off": GE_OFF, "induced": GE_INDUCED, "paper": GE_PAPER, "tables": GE_TABLES}
 
 
 def ground_effect_mode(value: bool | str | int) -> int:
-    """Map the user's ``ground_effect`` argument (True/False/'induced'/'paper'/'off') to a code."""
+    """Map the user's ``ground_effect`` argument (True/False/'induced'/'paper'/'tables'/'off') to a code."""
     if value is True:
         return GE_INDUCED
     if value is False or value is None:

@@ -7,7 +7,8 @@ torch container :class:`ModelParams`, :func:`build_params`, the Warp struct :cla
 
 Every row but the aero monomial exponents is per env, so that domain randomisation is one masked
 write (``ModelParams.assign``); the exponents are shared by all envs (they fix the structure, not
-the values). N = envs, T = aero monomials, M = motors.
+the values), as are the packed table terms (``airframe_tables``) but their gains. N = envs, T = aero
+monomials, M = motors, K = table terms, B = breakpoints, V = table values, L = longest table axis.
 """
 
 from __future__ import annotations
@@ -17,7 +18,8 @@ from typing import Any
 
 import torch
 
-from ..airframe import SURFACES, Actuator, Airframe
+from ..airframe import MOTOR_MODELS, SURFACES, Actuator, Airframe
+from ..airframe_tables import INDEX_COLUMNS, NO_OUTPUT
 from ..constants import G0
 from . import parameter_table
 from ._warp import vector_type, wp
@@ -139,6 +141,22 @@ PARAMETER_TABLE: tuple[ParamRow, ...] = (
     _switch("no_propeller_torque", "no propeller reaction torque"),
     ParamRow("aero_exponents", "[T, 5]", lambda af, _: af.aero.exponents, dtype="int64", per_env=False,
              warp=None, doc="monomial exponents, columns alpha, beta, elevator, aileron, rudder"),
+    ParamRow("motor_model", "[N, M]", lambda af, _: [MOTOR_MODELS.index(m.model) for m in af.motors],
+             dtype="int32", warp="int32", doc="0 momentum theory, 1 the airframe's thrust map (table terms)"),
+    ParamRow("table_gain", "[N, K]", lambda af, _: af.tables.gains(), randomizable=True,
+             doc="gain of each table term (physics/tables.py)"),
+    ParamRow("table_index", "[K, 12]", lambda af, _: af.tables.index(), dtype="int32", per_env=False,
+             warp="int32", doc=f"packed table terms, columns {', '.join(INDEX_COLUMNS)}"),
+    ParamRow("table_output_start", f"[{NO_OUTPUT + 1}]", lambda af, _: af.tables.output_start(),
+             dtype="int32", per_env=False, warp="int32", doc="terms of output o: [start[o], start[o + 1])"),
+    ParamRow("table_breakpoints", "[B]", lambda af, _: af.tables.breakpoints(), per_env=False,
+             doc="every table axis' breakpoints, concatenated"),
+    ParamRow("table_values", "[V]", lambda af, _: af.tables.values(), per_env=False,
+             doc="every table's values, row-major, concatenated"),
+    ParamRow("table_grid", "[K, 3, L]", lambda af, _: af.tables.grid(), per_env=False, warp=None,
+             doc="breakpoints per term and axis, padded (the torch lookup)"),
+    ParamRow("table_exponents", "[K, 13]", lambda af, _: af.tables.exponents(), dtype="int64",
+             per_env=False, warp=None, doc="table-term multiplier exponents, columns TABLE_VARIABLES"),
 )
 
 #: Warp struct fields computed at binding rather than stored in :class:`ModelParams`.
@@ -168,8 +186,12 @@ WarpParams = make_warp_struct(
 
 
 def table_sizes(airframe: Airframe, num_envs: int) -> dict[str, int]:
-    """Sizes of the shape symbols: N envs, T aero monomials, M motors."""
-    return {"N": num_envs, "T": len(airframe.aero.exponents), "M": airframe.num_motors}
+    """Sizes of the shape symbols: N envs, T aero monomials, M motors; K table terms, B breakpoints,
+    V table values, L longest axis (``airframe_tables.TableSet``)."""
+    tables = airframe.tables
+    return {"N": num_envs, "T": len(airframe.aero.exponents), "M": airframe.num_motors,
+            "K": tables.num_terms, "B": tables.breakpoints().size, "V": tables.values().size,
+            "L": tables.max_breakpoints()}
 
 
 def build_params(

@@ -5,6 +5,11 @@
 
 V_ax is the air-relative velocity along the thrust axis. Zero throttle gives zero thrust, and the
 thrust is clamped at zero above the discharge speed (a windmilling propeller gives no thrust here).
+A motor whose ``motor_model`` is 1 (airframe ``model`` "thrust_map") instead reads T and Q from the
+airframe's table terms of outputs "thrust" and "torque" (``tables.py``), at its axial inflow speed
+V_ax (the "airspeed" variable), its throttle and the density: a map sampled in steady state from
+another simulator's engine and propeller (e.g. an imported JSBSim aircraft), T >= 0 again.
+
 Each motor adds F = T a and M = r x F + Q a; the model switch ``no_propeller_torque``
 (``switches.ModelSwitches(propeller_torque=False)``) drops Q per env.
 """
@@ -16,6 +21,35 @@ import torch
 from ._warp import warp_func, warp_struct, wp
 from .params import ModelParams, WarpParams
 from .state import THROTTLE_START, StateVec
+from .tables import (
+    AIRSPEED,
+    DENSITY,
+    NUM_VARIABLES,
+    THROTTLE,
+    THRUST_OUTPUT,
+    TORQUE_OUTPUT,
+    TableVars,
+    has_terms,
+    table_output_wp,
+    table_outputs,
+)
+
+#: ``motor_model`` code of a thrust-map motor.
+THRUST_MAP = 1
+
+
+def thrust_map(v_axial: torch.Tensor, throttle: torch.Tensor, density: torch.Tensor, p: ModelParams
+               ) -> tuple[torch.Tensor, torch.Tensor]:
+    """(thrust [N, M] N, torque [N, M] N m) of the airframe's thrust map at axial inflow [N, M] m/s,
+    throttle [N, M] and density [N] (evaluated for every motor; used where motor_model is 1)."""
+    n, m = v_axial.shape
+    x = torch.zeros(n, m, NUM_VARIABLES, dtype=v_axial.dtype, device=v_axial.device)
+    x[..., AIRSPEED] = v_axial
+    x[..., THROTTLE] = throttle.clamp(0.0, 1.0)
+    x[..., DENSITY] = density[:, None]
+    gains = p.table_gain.repeat_interleave(m, dim=0)
+    out = table_outputs(x.reshape(n * m, NUM_VARIABLES), p, gains).reshape(n, m, -1)
+    return torch.relu(out[..., THRUST_OUTPUT]), out[..., TORQUE_OUTPUT]
 
 
 def motor_thrust(v_air_body: torch.Tensor, throttle: torch.Tensor, density: torch.Tensor,
@@ -26,7 +60,15 @@ def motor_thrust(v_air_body: torch.Tensor, throttle: torch.Tensor, density: torc
     v_discharge = v_axial + delta * (p.discharge_speed - v_axial)
     thrust = 0.5 * density[:, None] * p.disk_area * p.thrust_coefficient * v_discharge * (
         v_discharge - v_axial)
+    if has_thrust_map(p):
+        mapped, _ = thrust_map(v_axial, throttle, density, p)
+        thrust = torch.where(p.motor_model == THRUST_MAP, mapped, thrust)
     return torch.relu(thrust)
+
+
+def has_thrust_map(p: ModelParams) -> bool:
+    """Whether the airframe has thrust-map terms (``tables.has_terms``, cached per tensor)."""
+    return bool(p.motor_model.numel()) and has_terms(p, THRUST_OUTPUT)
 
 
 def propulsion_forces(v_air_body: torch.Tensor, throttle: torch.Tensor, density: torch.Tensor,
@@ -36,6 +78,10 @@ def propulsion_forces(v_air_body: torch.Tensor, throttle: torch.Tensor, density:
     force_m = thrust.unsqueeze(-1) * p.motor_axis  # [N, M, 3]
     delta = throttle.clamp(0.0, 1.0)
     torque = -p.motor_spin * p.torque_coefficient * (p.torque_speed_constant * delta) ** 2
+    if has_thrust_map(p):
+        v_axial = torch.einsum("nmi,ni->nm", p.motor_axis, v_air_body)
+        _, mapped_torque = thrust_map(v_axial, throttle, density, p)
+        torque = torch.where(p.motor_model == THRUST_MAP, mapped_torque, torque)
     torque = torque.masked_fill((p.no_propeller_torque != 0).unsqueeze(-1), 0.0)
     moment_m = torch.linalg.cross(p.motor_position, force_m, dim=-1) + torque.unsqueeze(-1) * (
         p.motor_axis)
@@ -61,7 +107,19 @@ def motor_thrust_wp(v_air_body: wp.vec3, throttle: float, density: float, p: War
     v_discharge = v_axial + delta * (p.discharge_speed[i, m] - v_axial)
     thrust = 0.5 * density * p.disk_area[i, m] * p.thrust_coefficient[i, m] * v_discharge * (
         v_discharge - v_axial)
+    if p.motor_model[i, m] == THRUST_MAP:
+        thrust = table_output_wp(map_variables_wp(v_axial, throttle, density), p, i, THRUST_OUTPUT)
     return wp.max(thrust, 0.0)
+
+
+@warp_func
+def map_variables_wp(v_axial: float, throttle: float, density: float) -> TableVars:
+    """The thrust-map variables of one motor (twin of the rows built in :func:`thrust_map`)."""
+    x = TableVars()
+    x[AIRSPEED] = v_axial
+    x[THROTTLE] = wp.clamp(throttle, 0.0, 1.0)
+    x[DENSITY] = density
+    return x
 
 
 @warp_func
@@ -78,6 +136,9 @@ def propulsion_forces_wp(v_air_body: wp.vec3, x: StateVec, density: float, p: Wa
         delta = wp.clamp(throttle, 0.0, 1.0)
         ks = p.torque_speed_constant[i, m] * delta
         torque = -p.motor_spin[i, m] * p.torque_coefficient[i, m] * ks * ks
+        if p.motor_model[i, m] == THRUST_MAP:
+            torque = table_output_wp(map_variables_wp(wp.dot(axis, v_air_body), throttle, density), p, i,
+                                     TORQUE_OUTPUT)
         if p.no_propeller_torque[i] != 0:
             torque = 0.0
         out.force_body = out.force_body + force

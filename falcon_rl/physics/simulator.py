@@ -25,6 +25,7 @@ from .backends import ENGINES, engine_class
 from .derived import split_derived
 from .dynamics import AirInputs, hold_command, project
 from .engine import Engine, EngineSetup
+from .ground_effect import GE_MODES
 from .integrators import INTEGRATORS
 from .params import ModelParams, build_params
 from .rotations import euler_to_quaternion
@@ -226,7 +227,7 @@ class Simulator:
         """(state [S], command [4]) of trimmed level flight at cruise speed and 100 m."""
         if self._default is None:
             ge = int(self.params.ground_effect_mode[0])
-            mode = {0: "off", 1: "induced", 2: "paper"}[ge]
+            mode = {code: name for name, code in GE_MODES.items()}[ge]
             trim = trim_level(self.airframe, self.airframe.envelope.cruise_speed, DEFAULT_HEIGHT,
                               ground_effect=mode)
             self._default = trim.state[0].to(self.device, self.dtype)

@@ -1,0 +1,79 @@
+"""The JSBSim importer: mass balance against JSBSim's own, the shipped imported airframes, and the trim
+of the imported c172p against JSBSim's trim of its own model."""
+
+from __future__ import annotations
+
+import math
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from falcon_rl import list_airframes, load_airframe
+from falcon_rl.constants import FT
+
+jsbsim = pytest.importorskip("jsbsim")
+
+from falcon_rl.validation.jsbsim_engine import quiet_fdm  # noqa: E402
+from falcon_rl.validation.jsbsim_functions import parse_function  # noqa: E402
+from falcon_rl.validation.jsbsim_import import JSBSimImportError, mass_properties, resolve  # noqa: E402
+
+IMPORTED = ("jsbsim_c172p", "jsbsim_pa28", "jsbsim_c182")
+SLUG_FT2 = 1.3558179483
+
+
+def test_shipped_imported_airframes_load_and_say_where_they_come_from():
+    for name in IMPORTED:
+        assert name in list_airframes()
+        af = load_airframe(name)
+        assert af.aero.kind == "tabulated" and af.motors[0].model == "thrust_map"
+        assert af.provenance["imported_from"] == "jsbsim"
+        assert af.provenance["jsbsim"]["terms"] and len(af.tables.terms) > 20
+
+
+def test_mass_balance_matches_jsbsims_own():
+    root, path, model = resolve("c172p")
+    mass, _, inertia = mass_properties(ET.parse(path).getroot(), path)
+    fdm = quiet_fdm(root)
+    fdm.load_model(model)
+    fdm.run_ic()
+    assert math.isclose(mass, fdm["inertia/mass-slugs"] * 14.5939029, rel_tol=1e-4)
+    for k, axis in enumerate(("ixx", "iyy", "izz")):
+        assert math.isclose(inertia[k, k], fdm[f"inertia/{axis}-slugs_ft2"] * SLUG_FT2, rel_tol=2e-3)
+    assert math.isclose(inertia[0, 2], fdm["inertia/ixz-slugs_ft2"] * SLUG_FT2, rel_tol=0.05)
+
+
+def test_function_tables_clamp_at_their_edges():
+    element = ET.fromstring(
+        "<function><product><property>aero/alpha-rad</property><table>"
+        "<independentVar>aero/alpha-rad</independentVar>"
+        "<tableData>0 1\n 1 3</tableData></table></product></function>"
+    )
+    node = parse_function(element)
+    alpha = np.array([-1.0, 0.5, 2.0])
+    np.testing.assert_allclose(node(lambda _: alpha), alpha * np.array([1.0, 2.0, 3.0]))
+
+
+def test_unknown_model_is_refused_by_name():
+    with pytest.raises(JSBSimImportError, match="unknown JSBSim aircraft 'no_such'"):
+        resolve("no_such")
+
+
+@pytest.mark.parametrize("airspeed", [40.0, 50.0, 60.0])
+def test_imported_c172p_trims_like_jsbsims_c172p(airspeed):
+    from falcon_rl.physics.trim import trim_level
+
+    fdm = quiet_fdm(Path(jsbsim.get_default_root_dir()))
+    fdm.load_model("c172p")
+    fdm["ic/h-sl-ft"] = 1000.0 / FT
+    fdm["ic/vt-fps"] = airspeed / FT
+    fdm["ic/gamma-deg"] = 0.0
+    fdm.run_ic()
+    fdm["propulsion/set-running"] = -1
+    fdm["fcs/mixture-cmd-norm"] = 1.0
+    fdm["simulation/do_simple_trim"] = 1
+    ours = trim_level(load_airframe("jsbsim_c172p"), airspeed, 1000.0, ground_effect="off").row(0)
+    assert abs(ours["alpha_deg"] - math.degrees(fdm["aero/alpha-rad"])) < 0.1
+    assert abs(ours["elevator_deg"] - math.degrees(fdm["fcs/elevator-pos-rad"])) < 0.6
+    assert abs(ours["throttle"] - fdm["fcs/throttle-cmd-norm"]) < 0.02
