@@ -295,7 +295,7 @@ class FixedWingEnv(EnvBase):
         step = self.step_tensors(tensordict.get("action", None))
         out = self._output(step.observation, step.state, step.reason, step.truncated.unsqueeze(-1),
                            reward=step.reward.unsqueeze(-1))
-        if bool(step.non_finite.any()):
+        if not self.config.lean and bool(step.non_finite.any()):  # lean: the outputs are clean already
             out = self._zero_non_finite(out, step.non_finite)
         return out
 

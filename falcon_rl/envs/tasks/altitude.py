@@ -273,11 +273,13 @@ ALTITUDE_METRICS: tuple[Metric, ...] = (
     Metric("survival", "Surv."), Metric("acquisition", "Acq."), Metric("rmse_m", "RMSE", "m"),
     Metric("settling_time_s", "t_s", "s"), Metric("overshoot_m", "Over.", "m"))
 
-#: Training defaults (on top of each recipe's own). PPO on the Ranger, 2-core CPU, warp with the fused
-#: task step (~24 k env-steps/s including learning), final 100-episode protocol: 8 M frames, seed 1:
-#: survival 1, acquisition 1, RMSE 0.031 m (428 s of training); fewer frames are seed-dependent (4 M:
-#: seed 0 RMSE 0.17 m, seed 1 0.87 m; 6 M: seed 1 0.22 m, seed 2 acquisition 0). SAC and TD3 reach
-#: survival 1, acquisition 1 and RMSE 0.37 / 0.35 m after 400 k frames (falcon_rl/policies/README.md).
+#: Training defaults (on top of each recipe's own). PPO on the Ranger, 2-core CPU, warp with the one-launch
+#: env step: 512 envs x 16 steps per batch (8,192 frames, as 256 x 32 before, at ~28 k env-steps/s
+#: including learning against ~21 k), 8 M frames, final 100-episode protocol: seed 0 survival 1,
+#: acquisition 1, RMSE 0.30 m in 292 s of training; seed 1 RMSE 0.10 m in 285 s. The former 256 x 32
+#: batches reached RMSE 0.031 m (seed 1) in 428 s; fewer frames are seed-dependent (4 M: seed 0 RMSE
+#: 0.17 m, seed 1 0.87 m; 6 M: seed 1 0.22 m, seed 2 acquisition 0). SAC and TD3 reach survival 1,
+#: acquisition 1 and RMSE 0.37 / 0.35 m after 400 k frames (falcon_rl/policies/README.md).
 SPEC = register_task(TaskSpec(
     name="altitude", task=AltitudeTask, config=AltitudeConfig, gym_id="falcon_rl/Altitude-v0",
     title="Altitude acquisition and hold",
@@ -285,7 +287,8 @@ SPEC = register_task(TaskSpec(
     controllers={"lqr": "falcon_rl.baselines.lqr:AltitudeLQR.from_env",
                  "mppi": "falcon_rl.baselines.mppi:altitude_mppi", "trim": TRIM_HOLD},
     figure="falcon_rl.viz.evaluation:plot_altitude",
-    training={"ppo": {"num_envs": 256, "frames": 8_000_000, "episode_seconds": 20.0, "reward_scale": 0.1},
+    training={"ppo": {"num_envs": 512, "rollout_steps": 16, "frames": 8_000_000, "episode_seconds": 20.0,
+                      "reward_scale": 0.1},
               "sac": {"episode_seconds": 20.0}, "td3": {"episode_seconds": 20.0}},
     defaults=TRAINING_ENV_OPTIONS,
 ))
