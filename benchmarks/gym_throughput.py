@@ -93,7 +93,8 @@ def vector_block(step: Callable[[np.ndarray], object], space: gym.spaces.Box) ->
 def physics_block(task: str, num_envs: int, args: argparse.Namespace) -> tuple[Block, Block]:
     """(``Simulator.step(trim command, substeps=decimation)``, ``step_tensors(zero action)``) of the
     env the Gymnasium cases build (the same simulator and task)."""
-    env = make_env(task, args.airframe, num_envs=num_envs, backend=args.backend, device=args.device, seed=0)
+    env = make_env(task, args.airframe, num_envs=num_envs, backend=args.backend, device=args.device, seed=0,
+                   **env_options(args))
     env.reset()
     command = env.task.command(env.trim_action().expand(num_envs, -1)).clone()
     substeps, zero = env.config.decimation, torch.zeros(num_envs, env.task.action_dim)
@@ -136,10 +137,16 @@ def calibrate(block: Block, seconds: float) -> int:
     return max(1, round(steps * seconds / elapsed))
 
 
-def build(args: argparse.Namespace) -> list[tuple[Case, Block]]:
+def env_options(args: argparse.Namespace) -> dict:
+    """The env options every case is built with (the decimation when one is given)."""
+    return {} if args.decimation is None else {"decimation": args.decimation}
+
+
+def build(args: argparse.Namespace, decimation: int) -> list[tuple[Case, Block]]:
     """Every case with its block (built, warmed up and calibrated)."""
     task, n = args.task, args.envs
-    options = {"task": task, "airframe": args.airframe, "backend": args.backend, "device": args.device}
+    options = {"task": task, "airframe": args.airframe, "backend": args.backend, "device": args.device,
+               **env_options(args)}
     physics1, core1 = physics_block(task, 1, args)
     physics_n, core_n = physics_block(task, n, args)
     fast_vec = FalconVectorEnv(n, seed=0, **options)
@@ -150,13 +157,13 @@ def build(args: argparse.Namespace) -> list[tuple[Case, Block]]:
     register_gym_envs()
     made = gym.make(GYM_IDS[task], **{k: v for k, v in options.items() if k != "task"})
     blocks = [
-        (Case("physics: Simulator.step(substeps=5)", 1, "physics"), physics1),
+        (Case(f"physics: Simulator.step(substeps={decimation})", 1, "physics"), physics1),
         (Case("env core: step_tensors", 1, "core"), core1),
         (Case("CoreAircraftEnv fast path", 1, "fast"), single_block(CoreAircraftEnv(seed=0, **options))),
         (Case("gymnasium.make (wrappers) fast path", 1, "fast"), single_block(made)),
         (Case("CoreAircraftEnv TorchRL path", 1, "torchrl"),
          single_block(CoreAircraftEnv(seed=0, fast_path=False, **options))),
-        (Case("physics: Simulator.step(substeps=5)", n, "physics"), physics_n),
+        (Case(f"physics: Simulator.step(substeps={decimation})", n, "physics"), physics_n),
         (Case("env core: step_tensors", n, "core"), core_n),
         (Case("FalconVectorEnv fast path", n, "fast"), vector_block(fast_vec.step, fast_vec.action_space)),
         (Case("FalconSB3VecEnv fast path", n, "fast"), sb3),
@@ -214,14 +221,18 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=0.25, help="approximate seconds per timed block")
     parser.add_argument("--jsbsim-runs", type=int, default=10000, help="FGFDMExec.run() calls per block")
     parser.add_argument("--threads", type=int, default=1, help="torch CPU threads")
+    parser.add_argument("--decimation", type=int, default=None,
+                        help="physics steps per env step (default: the task's, 5 = 20 Hz control)")
     parser.add_argument("--json", default=None, help="also write the results to this JSON file")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
+    decimation = make_env(args.task, args.airframe, backend=args.backend, seed=0,
+                          **env_options(args)).config.decimation
     print(f"{platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, load average "
           f"{os.getloadavg()[0]:.1f}, torch {torch.__version__} ({args.threads} thread(s)); {args.task} on "
-          f"{args.airframe}, {args.backend} on {args.device}, 20 Hz control (5 physics steps of 10 ms)")
-    cases = build(args)
-    decimation = make_env(args.task, args.airframe, backend=args.backend, seed=0).config.decimation
+          f"{args.airframe}, {args.backend} on {args.device}, {100 / decimation:g} Hz control ({decimation} "
+          f"physics steps of 10 ms)")
+    cases = build(args, decimation)
     jsbsim = Case(f"JSBSim c172p ({decimation} FGFDMExec.run() per step)", 1, "jsbsim")
     for round_index in range(args.repeats):
         print(f"round {round_index + 1}/{args.repeats}", flush=True)
