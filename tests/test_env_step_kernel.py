@@ -165,3 +165,21 @@ def test_the_gymnasium_numpy_step_equals_the_tensor_core(task: str) -> None:
             np.testing.assert_array_equal(one[4][key], two[4][key])
         if one[2] or one[3]:
             fast.reset(), core.reset()
+
+
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs CUDA")
+@pytest.mark.parametrize("task", ["altitude", "attitude"])
+def test_one_launch_step_equals_the_staged_step_on_cuda(task: str) -> None:
+    envs = [make_env(task, "volantex_ranger", num_envs=256, backend="warp", device="cuda", seed=5, lean=True)
+            for _ in range(2)]
+    for env in envs:
+        env.reset()
+    one, two = envs
+    generator = torch.Generator().manual_seed(1)
+    for step in range(30):
+        action = _actions(step, one.task.action_dim, generator)[:1].expand(256, -1).cuda()
+        fused, staged = one.step_tensors(action, with_state=False), two._step_glued(action, with_state=False)
+        for name, a, b in zip(fused._fields, fused, staged, strict=True):
+            if a is not None:
+                assert torch.equal(a, b), (step, name)
+        assert torch.equal(one.sim.x, two.sim.x)
