@@ -180,6 +180,10 @@ def test_one_launch_step_equals_the_staged_step_on_cuda(task: str) -> None:
         action = _actions(step, one.task.action_dim, generator)[:1].expand(256, -1).cuda()
         fused, staged = one.step_tensors(action, with_state=False), two._step_glued(action, with_state=False)
         for name, a, b in zip(fused._fields, fused, staged, strict=True):
-            if a is not None:
+            if a is None:
+                continue
+            if a.is_floating_point():  # the CUDA compiler may contract a*b+c differently per module
+                torch.testing.assert_close(a, b, rtol=1e-4, atol=1e-4, msg=f"{step} {name}")
+            else:
                 assert torch.equal(a, b), (step, name)
-        assert torch.equal(one.sim.x, two.sim.x)
+        torch.testing.assert_close(one.sim.x, two.sim.x, rtol=1e-4, atol=1e-4)
