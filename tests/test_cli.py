@@ -107,6 +107,12 @@ def test_eval_climb_descend_trim_json(capsys, tmp_path):
          "--maneuvers: unknown ['loop']"),
         (["--task", "hover", "--controller", "trim"], "invalid choice: 'hover'"),
         (["--task", "altitude", "--controller", "no_such_policy.pt"], "nor a policy file"),
+        (["--task", "altitude", "--controller", "ppo", "--policy-seed", "7"],
+         "no shipped ppo policy of seed 7 for task 'altitude'"),
+        (["--task", "altitude", "--controller", "td3", "--airframe", "navion"], "no shipped td3 policy"),
+        (["--task", "altitude", "--controller", "lqr", "--policy-seed", "1"],
+         "--policy-seed picks a shipped ppo/sac/td3 policy; it does not apply to --controller lqr"),
+        (["--task", "altitude", "--controller", "ppo", "--policy-seed", "-1"], "--policy-seed"),
     ],
 )
 def test_eval_bad_input_exits_2_with_one_line(capsys, tmp_path, argv, needle):
@@ -115,3 +121,12 @@ def test_eval_bad_input_exits_2_with_one_line(capsys, tmp_path, argv, needle):
     assert code == 2
     assert needle in err
     assert len(err.strip().splitlines()) == 1
+
+
+def test_shipped_policies_are_named_by_algorithm_task_airframe_and_seed():
+    from falcon_rl.policies import shipped_name, shipped_policy
+
+    assert shipped_name("altitude", "volantex_ranger") == "ppo_altitude_volantex_ranger.pt"
+    name = shipped_name("attitude", "airframes/airship_v7.json", "sac", 2)
+    assert name == "sac_attitude_airship_v7_seed2.pt"
+    assert shipped_policy("altitude", "volantex_ranger", "ppo", 0).name == "ppo_altitude_volantex_ranger.pt"

@@ -216,25 +216,30 @@ def check_policy(name: str, task: str, flag: str = "--controller") -> Path:
     return path
 
 
-def check_controller(name: str, task: str, airframe: str, flag: str = "--controller") -> str:
-    """The label of controller ``name`` for ``task`` on ``airframe`` (a baseline of the task, ppo or a policy
-    file that flies the task), else UsageError: checked before any env is built."""
+def check_controller(name: str, task: str, airframe: str, flag: str = "--controller", policy_seed: int = 0
+                     ) -> str:
+    """The label of controller ``name`` for ``task`` on ``airframe`` (a baseline of the task, ppo, sac or td3
+    for the shipped policy of ``policy_seed``, or a policy file that flies the task), else UsageError:
+    checked before any env is built."""
     from ..envs.tasks import task_spec
     from ..evaluation.controllers import baseline_names
-    from ..policies import shipped_policy
+    from ..policies import ALGORITHMS, shipped_policy
 
+    if name not in ALGORITHMS and policy_seed != 0:
+        raise UsageError(f"--policy-seed picks a shipped {'/'.join(ALGORITHMS)} policy; it does not apply to "
+                         f"{flag} {name}")
     if name in baseline_names():
         try:
             task_spec(task).controller(name)
         except ValueError as exc:
             raise UsageError(f"{flag}: {exc}") from None
         return name
-    if name == "ppo":
+    if name in ALGORITHMS:
         try:
-            shipped_policy(task, airframe)
+            shipped_policy(task, airframe, name, policy_seed)
         except ValueError as exc:
-            raise UsageError(f"{flag} ppo: {exc}") from None
-        return name
+            raise UsageError(f"{flag} {name}: {exc}") from None
+        return name if policy_seed == 0 else f"{name}_seed{policy_seed}"
     return check_policy(name, task, flag).stem
 
 

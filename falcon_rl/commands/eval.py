@@ -22,6 +22,7 @@ from ._common import (
     comma_list,
     emit,
     inside,
+    nonnegative_int,
     output_dir,
     positive_int,
 )
@@ -36,8 +37,9 @@ def controllers_help() -> str:
 
     per_task = "; ".join(f"{name}: {', '.join(sorted(spec.controllers))}"
                          for name, spec in TASK_SPECS.items())
-    return (f"a controller of the task ({per_task}), ppo (the shipped PPO policy of the task and airframe) "
-            "or the path of a policy file (policy.pt of 'falcon-rl train')")
+    return (f"a controller of the task ({per_task}), ppo, sac or td3 (the shipped policy of that algorithm, "
+            "task and airframe; see --policy-seed) or the path of a policy file (policy.pt of "
+            "'falcon-rl train')")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -47,6 +49,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--controller", required=True, help=controllers_help())
     parser.add_argument("--task", choices=task_names(), default="altitude")
     parser.add_argument("--airframe", default="volantex_ranger", help="shipped name or path to a JSON file")
+    parser.add_argument("--policy-seed", type=nonnegative_int, default=0,
+                        help="with ppo, sac or td3: the training seed of the shipped policy (default 0)")
     parser.add_argument("--episodes", type=positive_int, default=20, help="episodes (attitude: per maneuver)")
     parser.add_argument("--maneuvers", default=None,
                         help=f"comma list of {','.join(MANEUVERS)} (protocols that fly maneuvers: attitude)")
@@ -77,7 +81,7 @@ def run(args: argparse.Namespace) -> int:
     spec = task_spec(args.task)
     protocol = spec.protocol_function()
     options = _protocol_options(args, protocol)
-    label = check_controller(args.controller, args.task, args.airframe)
+    label = check_controller(args.controller, args.task, args.airframe, policy_seed=args.policy_seed)
     out = output_dir(args.out)
     figure = inside(out, f"{args.task}_{airframe.name}_{label}.png", "figure name")
     title = f"{label} on {airframe.name}: {args.task} protocol"
@@ -89,7 +93,8 @@ def _evaluate(args: argparse.Namespace, spec, options: dict, label: str, title: 
     from ..evaluation.controllers import make_controller
     from ..evaluation.report import result_document, write_report
 
-    result = spec.protocol_function()(args.airframe, label, lambda env: make_controller(args.controller, env),
+    result = spec.protocol_function()(args.airframe, label,
+                                      lambda env: make_controller(args.controller, env, args.policy_seed),
                       episodes=args.episodes, seed=args.seed, backend=args.backend, device=args.device,
                       episode_seconds=args.seconds, **options)
     plot = spec.figure_function()

@@ -2,8 +2,9 @@
 
 The baselines that apply to a task are the ones its ``TaskSpec.controllers`` lists: "lqr" and "mppi"
 (the classical baselines, where they apply) and "trim" (holds the trim commands, a floor every
-controller must beat; every task has it). "ppo" is the shipped PPO policy of the task and airframe;
-any other string is the path of a saved policy of the task (or of a task it derives from, e.g. an
+controller must beat; every task has it). "ppo", "sac" and "td3" are the shipped policies of that
+algorithm, task and airframe (``policy_seed`` picks the training seed, 0 by default); any other string
+is the path of a saved policy of the task (or of a task it derives from, e.g. an
 altitude policy on climb_descend, which keeps the altitude MDP).
 """
 
@@ -17,7 +18,7 @@ from tensordict.nn import TensorDictModuleBase
 
 from ..envs import FixedWingEnv
 from ..envs.tasks import TASK_SPECS, TaskSpec, task_spec
-from ..policies import load_policy, shipped_policy
+from ..policies import ALGORITHMS, load_policy, shipped_policy
 
 CONTROLLERS = ("lqr", "mppi", "trim", "ppo")
 
@@ -42,15 +43,16 @@ def baseline_names() -> set[str]:
     return {"lqr", "mppi", "trim"}.union(*(spec.controllers for spec in TASK_SPECS.values()))
 
 
-def make_controller(name: str, env: FixedWingEnv) -> TensorDictModuleBase:
-    """Build controller ``name`` for ``env``'s task: one of its spec's baselines, "ppo" or a policy file.
+def make_controller(name: str, env: FixedWingEnv, policy_seed: int = 0) -> TensorDictModuleBase:
+    """Build controller ``name`` for ``env``'s task: one of its spec's baselines, "ppo", "sac" or "td3" (the
+    shipped policy of that algorithm, task and airframe trained with ``policy_seed``) or a policy file.
     A baseline that does not apply, or a policy of another task, is a one-line ValueError."""
     spec = task_spec(env.config.task)
     if name in spec.controllers or name in baseline_names():
         return spec.controller(name)(env)  # ValueError naming the task's controllers if not among them
     path = Path(name)
-    if name == "ppo":  # the shipped policy (package data) of this task and airframe
-        path = shipped_policy(spec.name, env.config.airframe)
+    if name in ALGORITHMS:  # the shipped policy (package data) of this task and airframe
+        path = shipped_policy(spec.name, env.config.airframe, name, policy_seed)
     if not path.is_file():
         raise ValueError(f"controller {name!r} is neither one of task {spec.name!r}'s controllers "
                          f"{sorted(spec.controllers)} nor a policy file")

@@ -125,11 +125,10 @@ def policy_source(cell: Cell) -> str:
     from ..policies import shipped_policy
 
     params = cell.param_dict
-    if cell.seed == 0:
-        try:
-            return str(shipped_policy(cell.task, cell.airframe, cell.controller))
-        except ValueError:
-            pass
+    try:
+        return str(shipped_policy(cell.task, cell.airframe, cell.controller, cell.seed))
+    except ValueError:
+        pass
     folder = Path(params.get("policies", "runs/experiment/policies")) / (
         f"{cell.controller}_{cell.task}_{cell.airframe}_seed{cell.seed}")
     if (folder / "policy.pt").is_file():
