@@ -1,6 +1,6 @@
 """The altitude task's step in one Warp kernel (``AltitudeTask.fused_step`` on the warp backend).
 
-:func:`altitude_step` does for env i what ``AltitudeTask.step(sim.state, action)`` does: it
+:func:`altitude_step_kernel` does for env i what ``AltitudeTask.step(sim.state, action)`` does: it
 computes the derived state the task reads with ``warp_common.flight_state`` (the twins of the engine's
 evaluation kernel), then advances the clock and the reference ramp, releases the next target
 (``target_sequence``), updates the filters, and writes the reward, the termination reason and the
@@ -23,6 +23,7 @@ import torch
 import warp as wp
 
 from ...constants import DEG
+from ...physics.warp_kernels import flush_denormals_begin, flush_denormals_end
 from .warp_common import (
     FusedStep,
     SimulatorViews,
@@ -200,6 +201,17 @@ def altitude_step(sim: SimulatorViews, buf: AltitudeBuffers, c: AltitudeConstant
     observation[i, 10] = clip(ref[1] / 5.0, lim)
 
 
+@wp.kernel
+def altitude_step_kernel(sim: SimulatorViews, buf: AltitudeBuffers, c: AltitudeConstants,
+                         observation: wp.array2d(dtype=wp.float32), reward: wp.array(dtype=wp.float32),
+                         reason: wp.array(dtype=wp.int64), offset: int):
+    """:func:`altitude_step` of env i = offset + tid (``offset``: first env of this CPU slice)."""
+    i = wp.tid() + offset
+    saved = flush_denormals_begin()
+    altitude_step(sim, buf, c, observation, reward, reason, i)
+    flush_denormals_end(saved)
+
+
 def altitude_constants(task: Task) -> Any:
     """:class:`AltitudeConstants` of ``task``'s config and airframe (scalars as the torch step forms
     them: Python products first, then float32)."""
@@ -220,9 +232,10 @@ def altitude_constants(task: Task) -> Any:
 
 
 class FusedAltitudeStep(FusedStep):
-    """The recorded launch of :func:`altitude_step` for one altitude task: observation [N, 11],
+    """The recorded launch of :func:`altitude_step_kernel` for one altitude task: observation [N, 11],
     reward [N], reason [N] long, and the random target shift [N] long drawn before each launch."""
 
+    kernel = altitude_step_kernel
     kernel_func = altitude_step
     task: Task
 

@@ -1,6 +1,6 @@
 """The attitude task's step in one Warp kernel (``AttitudeTask.fused_step`` on the warp backend).
 
-:func:`attitude_step` does for env i what ``AttitudeTask.step(sim.state, action)`` does: it
+:func:`attitude_step_kernel` does for env i what ``AttitudeTask.step(sim.state, action)`` does: it
 advances the clock and the command stream (a row of the maneuver table, or one step of the
 ``RandomCommandStream``: timer, target redraw on expiry, slew-limited command), computes the bank,
 climb-rate and airspeed errors from ``warp_common.flight_state``, and writes the reward, the
@@ -18,6 +18,7 @@ import torch
 import warp as wp
 
 from ...constants import DEG
+from ...physics.warp_kernels import flush_denormals_begin, flush_denormals_end
 from .warp_common import (
     FusedStep,
     SimulatorViews,
@@ -152,6 +153,17 @@ def attitude_step(sim: SimulatorViews, buf: AttitudeBuffers, c: AttitudeConstant
         observation[i, 11 + k] = clip(action[k], lim)
 
 
+@wp.kernel
+def attitude_step_kernel(sim: SimulatorViews, buf: AttitudeBuffers, c: AttitudeConstants,
+                         observation: wp.array2d(dtype=wp.float32), reward: wp.array(dtype=wp.float32),
+                         reason: wp.array(dtype=wp.int64), offset: int):
+    """:func:`attitude_step` of env i = offset + tid (``offset``: first env of this CPU slice)."""
+    i = wp.tid() + offset
+    saved = flush_denormals_begin()
+    attitude_step(sim, buf, c, observation, reward, reason, i)
+    flush_denormals_end(saved)
+
+
 def attitude_constants(task: Task) -> Any:
     """:class:`AttitudeConstants` of ``task``'s config, stream and airframe."""
     cfg = task.config
@@ -184,9 +196,10 @@ def attitude_constants(task: Task) -> Any:
 
 
 class FusedAttitudeStep(FusedStep):
-    """The recorded launch of :func:`attitude_step` for one attitude task: observation [N, 15],
+    """The recorded launch of :func:`attitude_step_kernel` for one attitude task: observation [N, 15],
     reward [N], reason [N] long, and the random stream's uniforms [N, 4] drawn before each launch."""
 
+    kernel = attitude_step_kernel
     kernel_func = attitude_step
     task: Task
 

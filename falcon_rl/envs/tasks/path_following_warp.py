@@ -1,7 +1,7 @@
 """The path-following task's step in one Warp kernel (``PathFollowingTask.fused_step`` on the warp
 backend).
 
-:func:`path_following_step` does for env i what ``PathFollowingTask.step(sim.state, action)``
+:func:`path_following_step_kernel` does for env i what ``PathFollowingTask.step(sim.state, action)``
 does: it advances the clock, computes the cross-track, course and altitude errors from
 ``warp_common.flight_state``, and writes the reward, the termination reason ("lost" after the shared
 reasons) and the clipped observation. The step draws no random numbers.
@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any
 import warp as wp
 
 from ...constants import DEG
+from ...physics.warp_kernels import flush_denormals_begin, flush_denormals_end
 from .warp_common import (
     FusedStep,
     SimulatorViews,
@@ -115,10 +116,22 @@ def path_following_step(sim: SimulatorViews, buf: PathFollowingBuffers, c: PathF
         observation[i, 13 + k] = clip(action[k], lim)
 
 
+@wp.kernel
+def path_following_step_kernel(sim: SimulatorViews, buf: PathFollowingBuffers, c: PathFollowingConstants,
+                               observation: wp.array2d(dtype=wp.float32), reward: wp.array(dtype=wp.float32),
+                               reason: wp.array(dtype=wp.int64), offset: int):
+    """:func:`path_following_step` of env i = offset + tid (``offset``: first env of this CPU slice)."""
+    i = wp.tid() + offset
+    saved = flush_denormals_begin()
+    path_following_step(sim, buf, c, observation, reward, reason, i)
+    flush_denormals_end(saved)
+
+
 class FusedPathFollowingStep(FusedStep):
-    """The recorded launch of :func:`path_following_step` for one path-following task:
+    """The recorded launch of :func:`path_following_step_kernel` for one path-following task:
     observation [N, 17], reward [N], reason [N] long."""
 
+    kernel = path_following_step_kernel
     kernel_func = path_following_step
     task: Task
 

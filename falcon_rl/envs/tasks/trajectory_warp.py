@@ -1,6 +1,6 @@
 """The trajectory task's step in one Warp kernel (``TrajectoryTask.fused_step`` on the warp backend).
 
-:func:`trajectory_step` does for env i what ``TrajectoryTask.step(sim.state, action)`` does: it
+:func:`trajectory_step_kernel` does for env i what ``TrajectoryTask.step(sim.state, action)`` does: it
 advances the clock and the reference point along its helix arc (closed form), rotates the position
 and velocity errors into the heading frame using ``warp_common.flight_state``, and writes the reward,
 the termination reason ("lost" after the shared reasons) and the clipped observation. The step draws
@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any
 import warp as wp
 
 from ...constants import DEG
+from ...physics.warp_kernels import flush_denormals_begin, flush_denormals_end
 from .warp_common import (
     FusedStep,
     SimulatorViews,
@@ -130,10 +131,22 @@ def trajectory_step(sim: SimulatorViews, buf: TrajectoryBuffers, c: TrajectoryCo
         observation[i, 13 + k] = clip(action[k], lim)
 
 
+@wp.kernel
+def trajectory_step_kernel(sim: SimulatorViews, buf: TrajectoryBuffers, c: TrajectoryConstants,
+                           observation: wp.array2d(dtype=wp.float32), reward: wp.array(dtype=wp.float32),
+                           reason: wp.array(dtype=wp.int64), offset: int):
+    """:func:`trajectory_step` of env i = offset + tid (``offset``: first env of this CPU slice)."""
+    i = wp.tid() + offset
+    saved = flush_denormals_begin()
+    trajectory_step(sim, buf, c, observation, reward, reason, i)
+    flush_denormals_end(saved)
+
+
 class FusedTrajectoryStep(FusedStep):
-    """The recorded launch of :func:`trajectory_step` for one trajectory task: observation
+    """The recorded launch of :func:`trajectory_step_kernel` for one trajectory task: observation
     [N, 17], reward [N], reason [N] long."""
 
+    kernel = trajectory_step_kernel
     kernel_func = trajectory_step
     task: Task
 

@@ -255,16 +255,9 @@ class FusedStep:
     A subclass sets :attr:`kernel` and gives :meth:`task_inputs` (the kernel's ``buf`` and ``c``
     structs); it draws the step's random numbers in :meth:`draw` (torch, the task's generator)."""
 
-    #: The task step's ``@wp.func`` (``(sim, buf, c, observation, reward, reason, i)``): run after the
-    #: engine's launch by :attr:`kernel`, or inside the env's one-launch step (``warp_env_step``).
+    kernel: ClassVar[Any]
+    #: The task step's ``@wp.func`` that :attr:`kernel` wraps (the env-step kernel calls it too).
     kernel_func: ClassVar[Any]
-
-    @property
-    def kernel(self) -> Any:
-        """The Warp kernel of :attr:`kernel_func` alone (made with the env-step kernels, in one module)."""
-        from .warp_env_step import TASK_STEP_KERNELS
-
-        return TASK_STEP_KERNELS[self.kernel_func]
 
     def __init__(self, task: Task):
         self.task = task

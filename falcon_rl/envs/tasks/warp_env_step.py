@@ -17,8 +17,7 @@ of the engine and the task did, with the same float32 arithmetic:
 6. the episode step count and the truncation flag (at ``max_episode_steps``, not when terminated).
 
 The kernels of the built-in tasks are made at import, all in this module, so that Warp compiles one
-module for them (the physics and every task), with each task's kernel alone (:func:`task_step_kernel`,
-``Task.fused_step``: the task after the engine's launch). :class:`FusedEnvStep` binds the views (the engine's
+module for them (the physics and every task). :class:`FusedEnvStep` binds the views (the engine's
 buffers, the task's, the env's counters), records the launches and replays them; per step it copies the
 action into its buffer (a cast for other float dtypes), draws the task's random numbers, bumps the
 turbulence stream counter when on, and launches: nothing else runs in Python or torch.
@@ -144,29 +143,14 @@ def env_step_kernel(task_step: Any, buffers: type, constants: type) -> Any:
     return wp.kernel(env_step)
 
 
-def task_step_kernel(task_step: Any, buffers: type, constants: type) -> Any:
-    """A Warp kernel of ``task_step`` alone (``Task.fused_step``: the task after the engine's own launch),
-    for env i = offset + tid."""
-
-    def task_only(sim: SimulatorViews, buf: buffers, c: constants,  # type: ignore[valid-type]
-                  observation: wp.array2d(dtype=wp.float32), reward: wp.array(dtype=wp.float32),
-                  reason: wp.array(dtype=wp.int64), offset: int):
-        i = wp.tid() + offset
-        saved = flush_denormals_begin()
-        task_step(sim, buf, c, observation, reward, reason, i)
-        flush_denormals_end(saved)
-
-    return wp.kernel(task_only)
-
-
-#: The built-in tasks' fused steps: (the task step's ``@wp.func``, its buffers and constants structs).
-_BUILT_IN = ((altitude_step, AltitudeBuffers, AltitudeConstants),
-             (attitude_step, AttitudeBuffers, AttitudeConstants),
-             (path_following_step, PathFollowingBuffers, PathFollowingConstants),
-             (trajectory_step, TrajectoryBuffers, TrajectoryConstants))
-#: Env-step kernels and task-only kernels of the built-in tasks, by the task step's ``@wp.func``.
-ENV_STEP_KERNELS: dict[Any, Any] = {func: env_step_kernel(func, b, c) for func, b, c in _BUILT_IN}
-TASK_STEP_KERNELS: dict[Any, Any] = {func: task_step_kernel(func, b, c) for func, b, c in _BUILT_IN}
+#: Env-step kernels of the built-in tasks' fused steps, by the task step's ``@wp.func``.
+ENV_STEP_KERNELS: dict[Any, Any] = {
+    func: env_step_kernel(func, buffers, constants) for func, buffers, constants in (
+        (altitude_step, AltitudeBuffers, AltitudeConstants),
+        (attitude_step, AttitudeBuffers, AttitudeConstants),
+        (path_following_step, PathFollowingBuffers, PathFollowingConstants),
+        (trajectory_step, TrajectoryBuffers, TrajectoryConstants),
+    )}
 
 
 class FusedEnvStep:
@@ -249,5 +233,4 @@ class FusedEnvStep:
         return {name: tensor.numpy() for name, tensor in tensors.items()}
 
 
-__all__ = ["ENV_STEP_KERNELS", "TASK_STEP_KERNELS", "EnvViews", "FusedEnvStep", "env_step_kernel",
-           "task_step_kernel"]
+__all__ = ["ENV_STEP_KERNELS", "EnvViews", "FusedEnvStep", "env_step_kernel"]
