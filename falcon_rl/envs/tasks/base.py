@@ -29,7 +29,7 @@ from __future__ import annotations
 import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, ClassVar
+from typing import ClassVar, Protocol
 
 import torch
 from tensordict import TensorDictBase
@@ -38,9 +38,6 @@ from ...airframe import Airframe
 from ...physics import Simulator, trim_level
 from ...physics import state as S
 from ...physics.rotations import quaternion_to_euler
-
-if TYPE_CHECKING:
-    from .warp_common import FusedStep
 
 #: Why an episode terminated: "termination_reason" holds the index (0: not terminated). Checked in
 #: this order, the first that applies is published.
@@ -92,6 +89,13 @@ class TaskConfig:
     trim_airspeed: float | None = None
     #: Stall termination: |alpha| beyond this multiple of the airframe's alpha_stall.
     stall_alpha_factor: float = 1.5
+
+
+class FusedTaskStep(Protocol):
+    """A task's backend-fused step (e.g. ``warp_common.FusedStep``): called with the checked action
+    [N, A] right after the physics, it returns (observation [N, D], reward [N], reason [N] long)."""
+
+    def __call__(self, action: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]: ...
 
 
 class Task(ABC):
@@ -225,7 +229,7 @@ class Task(ABC):
         self.previous_action.copy_(action)
         return self.observe(state), reward, reason
 
-    def fused_stepper(self) -> FusedStep | None:
+    def fused_stepper(self) -> FusedTaskStep | None:
         """This task's backend-fused step (bound on first use, kept in ``_fused``), or None when it has
         none for the simulator's backend (the default) or a subclass overrides a method it fuses.
 

@@ -26,7 +26,7 @@ No ``from __future__ import annotations`` here: Warp reads the kernel factory's 
 the task's struct types through the closure.
 """
 
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 import torch
@@ -47,8 +47,17 @@ from .path_following_warp import PathFollowingBuffers, PathFollowingConstants, p
 from .trajectory_warp import TrajectoryBuffers, TrajectoryConstants, trajectory_step
 from .warp_common import FusedStep, SimulatorViews
 
-if TYPE_CHECKING:
-    from ..fixed_wing import FixedWingEnv
+
+class SteppedEnv(Protocol):
+    """What :class:`FusedEnvStep` reads of the env it steps (``FixedWingEnv``): its config (num_envs,
+    decimation), device, simulator, task, episode step counter [N] long and horizon."""
+
+    config: Any
+    device: torch.device
+    sim: Any
+    task: Any
+    step_count: torch.Tensor
+    max_episode_steps: int
 
 NON_FINITE = wp.constant(TERMINATION_CODE["non_finite"])
 
@@ -162,7 +171,7 @@ class FusedEnvStep:
     ``numpy_views()`` gives NumPy views of the action and output buffers on the CPU, for callers that
     step with NumPy (write the action into the view, :meth:`launch`, read the outputs)."""
 
-    def __init__(self, env: "FixedWingEnv", task_step: FusedStep):
+    def __init__(self, env: SteppedEnv, task_step: FusedStep):
         self.env, self.task_step = env, task_step
         self.kernel = ENV_STEP_KERNELS[task_step.kernel_func]
         n, device = env.config.num_envs, env.device
