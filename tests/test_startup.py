@@ -86,7 +86,8 @@ def test_eval_help_lists_every_controller_of_every_task(capsys):
     out = " ".join(capsys.readouterr().out.split())
     for task, spec in TASK_SPECS.items():
         assert f"{task}: {', '.join(sorted(spec.controllers))}" in out, task
-    assert "ppo (the shipped PPO policy" in out and "policy file" in out
+    assert "ppo, sac or td3 (the shipped policy of that algorithm" in out and "policy file" in out
+    assert "--policy-seed" in out
     assert "--backend {torch,warp}" in out and "default warp" in out
 
 
