@@ -183,11 +183,21 @@ def test_tensorboard_logger_writes_events_or_says_what_is_missing(tmp_path):
     assert list((tmp_path / "logs").rglob("events.out.tfevents.*"))
 
 
+def _shipped(stem: str) -> tuple[str, str, str, int]:
+    """(algorithm, task, airframe, seed) of a shipped policy's file stem."""
+    from falcon_rl.envs.tasks import task_names
+
+    algorithm, rest = stem.split("_", 1)
+    task = max((t for t in task_names() if rest.startswith(t + "_")), key=len)
+    airframe, _, seed = rest[len(task) + 1:].partition("_seed")
+    return algorithm, task, airframe, int(seed or 0)
+
+
 @pytest.mark.parametrize("stem", available())
 def test_shipped_policies_load_and_act(stem):
-    _, task, *airframe = stem.split("_")
-    env = falcon_rl.make_env(task, "_".join(airframe), num_envs=4, backend="warp", seed=0)
-    policy = load_policy(shipped_policy(task, "_".join(airframe)), env)
+    algorithm, task, airframe, seed = _shipped(stem)
+    env = falcon_rl.make_env(task, airframe, num_envs=4, backend="warp", seed=0)
+    policy = load_policy(shipped_policy(task, airframe, algorithm, seed), env)
     td = env.reset()
     for _ in range(5):
         td = env.step_mdp(env.step(policy(td)))
