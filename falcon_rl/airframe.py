@@ -121,6 +121,9 @@ class AeroModel:
     beta_range: tuple[float, float]
     alpha_stall: float
     kind: str = "monomial"  # AERO_KINDS
+    #: Point the moment coefficients are taken about and the aero forces act at (body FRD, relative
+    #: to the CG, m): the CG itself unless the file gives ``moment_reference_m`` (JSBSim's AERORP).
+    moment_reference: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
 @dataclass(frozen=True)
@@ -442,7 +445,7 @@ def _parse_mass(r: _Reader, raw: dict) -> tuple[float, np.ndarray]:
 
 def _parse_aero(r: _Reader, raw: dict) -> tuple[AeroModel, list[TableTerm]]:
     keys = {"kind", "coefficients", "tables", "oswald_efficiency", "alpha_range_rad", "beta_range_rad",
-            "alpha_stall_rad", "notes"}
+            "alpha_stall_rad", "moment_reference_m", "notes"}
     a = r.section(raw, "aero", "", keys)
     kind = r.get(a, "kind", "aero", str, "monomial")
     if kind not in AERO_KINDS:
@@ -500,7 +503,10 @@ def _parse_aero(r: _Reader, raw: dict) -> tuple[AeroModel, list[TableTerm]]:
     table = np.stack([monomials[k] for k in keys_sorted])
     if kind == "monomial":
         _check_not_empty(r, exponents, table, rates)
-    return AeroModel(exponents, table, rates, oswald, alpha_range, beta_range, alpha_stall, kind), table_terms
+    ref = r.vector(a, "moment_reference_m", "aero", 3) if "moment_reference_m" in a else (0.0, 0.0, 0.0)
+    model = AeroModel(exponents, table, rates, oswald, alpha_range, beta_range, alpha_stall, kind,
+                      (float(ref[0]), float(ref[1]), float(ref[2])))
+    return model, table_terms
 
 
 def _check_tables(r: _Reader, terms: list[TableTerm]) -> None:

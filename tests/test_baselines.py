@@ -171,3 +171,19 @@ def test_mppi_attitude_height_profile_integrates_the_climb_commands():
         expected = 100.0 + float(table[:index, 1].double().sum()) * dt
         assert float(ref["height"][j, 0]) == pytest.approx(expected, abs=1e-3)
     assert float(ref["height"][-1, 0] - ref["height"][0, 0]) > 0.5 * float(table[2000, 1]) * 1.9
+
+
+def test_lqr_design_leaves_first_order_actuator_rates_out():
+    """A first-order actuator's rate state neither moves nor acts (an uncontrollable mode at z = 1 that
+    made the Riccati solve fail for the imported JSBSim aircraft): it gets zero gain, the rest is stable."""
+    from falcon_rl.baselines.linear_models import LONGITUDINAL_INDEX
+    from falcon_rl.baselines.lqr import ALTITUDE_INPUT_MAX, ALTITUDE_INTEGRAL_MAX, ALTITUDE_STATE_MAX
+    from falcon_rl.baselines.lqr_design import design_lqri, inert_states
+
+    model = linear_model(load_airframe("jsbsim_c172p"), 50.0, 10.0, ground_effect="tables")
+    outputs = np.zeros((1, model.A.shape[0]))
+    outputs[0, LONGITUDINAL_INDEX["h"]] = 1.0
+    assert inert_states(model, outputs).nonzero()[0].tolist() == [LONGITUDINAL_INDEX["elevator_rate"]]
+    gain = design_lqri(model, 0.05, outputs, ALTITUDE_STATE_MAX, ALTITUDE_INPUT_MAX, ALTITUDE_INTEGRAL_MAX)
+    assert gain.K.shape == (2, model.A.shape[0] + 1) and gain.spectral_radius < 1.0
+    assert not gain.K[:, LONGITUDINAL_INDEX["elevator_rate"]].any()

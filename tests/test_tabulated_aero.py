@@ -102,6 +102,7 @@ def tabulated_document() -> dict:
             "values": [[0.0, -0.3], [0.0, -0.1], [0.0, -0.05]],
         },
     ]
+    doc["aero"]["moment_reference_m"] = [-0.3, 0.02, 0.1]  # the warp and torch twins both transfer it
     speeds, throttles, densities = [0.0, 20.0, 40.0, 70.0], [0.0, 0.5, 1.0], [0.8, 1.225]
     doc["propulsion"]["thrust_map"] = [
         {
@@ -305,3 +306,23 @@ def re_escape(text: str) -> str:
     import re
 
     return re.escape(text)
+
+
+def test_aero_moment_is_transferred_from_the_moment_reference_point():
+    """M_cg = M_ref + r x F: moving the reference point changes the moment by exactly r x F."""
+    from falcon_rl.physics.aero import aero_forces
+    from falcon_rl.physics.params import build_params
+
+    doc = tabulated_document()
+    ref = torch.tensor([-0.3, 0.02, 0.1], dtype=torch.float64)
+    doc["aero"]["moment_reference_m"] = [0.0, 0.0, 0.0]
+    at_cg = build_params(parse(doc), 3, dtype=torch.float64)
+    at_ref = build_params(parse(tabulated_document()), 3, dtype=torch.float64)
+    args = (torch.tensor([30.0, 40.0, 50.0], dtype=torch.float64), torch.tensor([0.05, 0.1, -0.02],
+            dtype=torch.float64), torch.tensor([0.0, 0.05, -0.1], dtype=torch.float64),
+            torch.full((3, 3), 0.1, dtype=torch.float64), torch.full((3, 3), 0.05, dtype=torch.float64),
+            torch.full((3,), 1.2, dtype=torch.float64), torch.full((3,), 100.0, dtype=torch.float64))
+    a, b = aero_forces(*args, at_cg), aero_forces(*args, at_ref)
+    torch.testing.assert_close(b.force_body, a.force_body)
+    transfer = torch.linalg.cross(ref.expand(3, 3), a.force_body)
+    torch.testing.assert_close(b.moment_body - a.moment_body, transfer)

@@ -3,10 +3,12 @@
 C_k = sum_t a[t, k] prod_j x_j^e[t, j] + sum_i b[k, i] rate_hat_i,  x = (alpha, beta, d_e, d_a, d_r),
 rate_hat = (p b / 2V, q c / 2V, r b / 2V), with alpha and beta clamped to the table's validity
 range. Lift and drag act in stability axes and are rotated by alpha into the body frame; side force
-and the moments (about the CG) are body axes:
+and the moments are body axes. The moment coefficients are taken about the aero reference point r_a
+(``aero.moment_reference_m``, body FRD from the CG; zero, the CG itself, unless the file gives one:
+JSBSim's AERORP), where the force acts, so about the CG
 
     F = qbar S [-C_D cos a + C_L sin a,  C_Y,  -C_D sin a - C_L cos a]
-    M = qbar S [b C_l,  c C_m,  b C_n]
+    M = qbar S [b C_l,  c C_m,  b C_n] + r_a x F
 
 A tabulated airframe (``aero.kind`` "tabulated") adds its table terms (``tables.py``): sums of 1-3D
 tables of alpha, beta (not clamped: each table clamps at its own edges), the deflections, rate_hat,
@@ -176,7 +178,7 @@ def aero_forces(
     surfaces: torch.Tensor, density: torch.Tensor, h_over_b: torch.Tensor, p: ModelParams,
     throttle: torch.Tensor | None = None,
 ) -> AeroOutput:
-    """Body-axis aero force and moment about the CG.
+    """Body-axis aero force and moment about the CG (the force acting at ``p.aero_reference``).
 
     Args:
         airspeed, alpha, beta: [N] air-relative speed (m/s) and angles (rad).
@@ -201,7 +203,7 @@ def aero_forces(
     cl, cd, cy = coeffs[:, 0], coeffs[:, 1], coeffs[:, 2]
     ca, sa = torch.cos(alpha), torch.sin(alpha)
     force = torch.stack([-cd * ca + cl * sa, cy, -cd * sa - cl * ca], dim=-1) * qs[:, None]
-    moment = coeffs[:, 3:] * lengths * qs[:, None]
+    moment = coeffs[:, 3:] * lengths * qs[:, None] + torch.linalg.cross(p.aero_reference, force, dim=-1)
     return AeroOutput(force, moment, coeffs, cdi, kappa_l, kappa_d)
 
 
@@ -333,7 +335,8 @@ def aero_forces_throttle_wp(airspeed: float, alpha: float, beta: float, omega_ai
     sa = wp.sin(alpha)
     out = AeroResultWp()
     out.force_body = wp.vec3(-cd * ca + cl * sa, c[2], -cd * sa - cl * ca) * qs
-    out.moment_body = wp.vec3(c[3] * span, c[4] * chord, c[5] * span) * qs
+    out.moment_body = wp.vec3(c[3] * span, c[4] * chord, c[5] * span) * qs + wp.cross(p.aero_reference[i],
+                                                                                       out.force_body)
     out.coefficients = c
     out.induced_drag_coefficient = cdi_out
     out.kappa_lift = kappa_l

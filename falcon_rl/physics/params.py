@@ -96,6 +96,8 @@ PARAMETER_TABLE: tuple[ParamRow, ...] = (
              warp="WingConstants", doc="ground_effect.wing_constants(aspect_ratio, taper_ratio)"),
     ParamRow("wing_quarter_chord", "[N, 3]", _geometry("wing_quarter_chord"), randomizable=True,
              warp="vec3", unit="m", doc="body FRD, relative to the CG"),
+    ParamRow("aero_reference", "[N, 3]", lambda af, _: af.aero.moment_reference, randomizable=True,
+             warp="vec3", unit="m", doc="aero moment reference point, body FRD, relative to the CG"),
     ParamRow("aero_coefficients", "[N, T, 6]", lambda af, _: af.aero.coefficients, randomizable=True,
              warp="Vec6", doc="monomial coefficients, columns CL, CD, CY, Cl, Cm, Cn"),
     ParamRow("aero_rates", "[N, 6, 3]", lambda af, _: af.aero.rate_derivatives, randomizable=True,

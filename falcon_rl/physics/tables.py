@@ -57,8 +57,8 @@ _STARTS: dict[int, tuple[weakref.ref, list[int]]] = {}
 
 
 def multipliers(x: torch.Tensor, exponents: torch.Tensor) -> torch.Tensor:
-    """prod_j x_j^e[k, j] [N, K] from x [N, 13] and exponents [K, 13] in [0, 3] (by products, so that
-    gradients stay finite at x = 0)."""
+    """The monomial multipliers prod_j x_j^(e_kj), shape [N, K], from x [N, 13] and exponents e [K, 13] in
+    [0, 3] (by products, so that gradients stay finite at x = 0)."""
     xk = x.unsqueeze(1)  # [N, 1, 13]
     out = torch.ones(x.shape[0], exponents.shape[0], x.shape[1], dtype=x.dtype, device=x.device)
     for power in range(1, MAX_MULTIPLIER_EXPONENT + 1):

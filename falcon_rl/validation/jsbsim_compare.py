@@ -32,7 +32,8 @@ from ..physics.trim import trim_level
 from .jsbsim_export import export_aircraft
 from .jsbsim_fly import CHANNELS, PLANET_RADIUS, Trajectory, fly_falcon, fly_jsbsim
 
-#: Ground-effect settings: name -> (falcon-rl on, JSBSim export on).
+#: Ground-effect settings: name -> (falcon-rl on, JSBSim export on). An imported airframe's comparison
+#: (``jsbsim_model_compare``) is "both": falcon-rl reads JSBSim's own ground-effect tables.
 GE_SETTINGS: dict[str, tuple[bool, bool]] = {"off": (False, False), "on": (True, False), "both": (True, True)}
 EXCITATIONS: tuple[str, ...] = ("trim", "doublet")
 #: The channels of the reference paper's table.

@@ -2,7 +2,10 @@
 
 For each (altitude, airspeed) the aircraft is put at that state with its translational and rotational
 integrators switched off (JSBSim integrator 0: the state does not move), the engine running and the
-mixture full rich; each throttle is then held until the engine speed settles (``SETTLE_S``) and the
+mixture full rich, the magnetos on; an engine that is not running then (JSBSim's ``set-running`` does
+not start some engines at low airspeed, e.g. the c182's behind its constant-speed propeller) or that
+stops is cranked with the starter for ``START_S``. Each throttle is then held until the engine speed
+settles (``SETTLE_S``) and the
 thrust, the propeller's roll moment and the engine properties the aero functions read (prop-wash
 induced velocity, thrust coefficient) are recorded. The map is the falcon-rl "thrust_map" propeller
 model: airspeed (axial inflow) x throttle x density, multilinear, clamped.
@@ -23,6 +26,9 @@ LBF = 4.4482216152605  # N
 SLUG_FT3 = 515.378818  # kg/m^3 per slug/ft^3
 #: Seconds a throttle is held before reading (the engine speed settles within a few seconds).
 SETTLE_S = 8.0
+#: Seconds the starter cranks an engine that is not running.
+START_S = 3.0
+RUNNING = "propulsion/engine[0]/set-running"
 THRUST = "propulsion/engine[0]/thrust-lbs"
 ROLL_MOMENT = "moments/l-prop-lbsft"
 
@@ -72,6 +78,14 @@ class EngineMap:
         return multilinear(grids, self.properties[key], points).reshape(shape)
 
 
+def crank(fdm, frames: int) -> None:
+    """Run the starter for ``frames`` frames, then release it."""
+    fdm["propulsion/starter_cmd"] = 1
+    for _ in range(frames):
+        fdm.run()
+    fdm["propulsion/starter_cmd"] = 0
+
+
 def sample_engine(
     root: Path,
     model: str,
@@ -105,8 +119,11 @@ def sample_engine(
                 "position/translational",
             ):
                 fdm[f"simulation/integrator/{integrator}"] = 0
+            fdm["propulsion/magneto_cmd"] = 3
             for t, throttle in enumerate(throttles):
                 fdm["fcs/throttle-cmd-norm"] = float(throttle)
+                if not fdm[RUNNING]:
+                    crank(fdm, round(START_S / fdm.get_delta_t()))
                 for _ in range(frames):
                     fdm.run()
                 thrust[a, s, t] = fdm[THRUST] * LBF

@@ -75,8 +75,13 @@ def export_aircraft(airframe: Airframe, directory: str | Path, ground_effect_mod
     ``directory`` becomes a JSBSim root: load it with ``FGFDMExec(str(directory))`` and
     ``load_model(airframe.name)``. ``ground_effect_model`` is "induced" (our default: only the
     induced drag is scaled) or "paper" (C_D = C_D_inf kappa_D kappa_L^2); set the property
-    ``aero/falcon/ground-effect`` to 0 to fly without ground effect.
+    ``aero/falcon/ground-effect`` to 0 to fly without ground effect. Only monomial airframes are
+    exported: a tabulated one (imported from JSBSim) is compared with its source aircraft instead
+    (``jsbsim_model_compare``, ``validate jsbsim --jsbsim-model``).
     """
+    if airframe.aero.kind != "monomial":
+        raise ValueError(f"{airframe.name}: the JSBSim export writes monomial aero models only; compare an "
+                         "imported airframe with its JSBSim aircraft: validate jsbsim --jsbsim-model NAME")
     if ground_effect_model not in ("induced", "paper"):
         raise ValueError(f"ground_effect_model must be 'induced' or 'paper', got {ground_effect_model!r}")
     root = ET.Element("fdm_config", {"name": airframe.name, "version": "2.0", "release": "BETA"})

@@ -165,7 +165,8 @@ def set_command(fdm, command: np.ndarray) -> None:
         fdm[prop] = float(value)
 
 
-def _jsbsim_row(fdm) -> dict[str, float]:
+def jsbsim_row(fdm) -> dict[str, float]:
+    """The channels (SI) of JSBSim's current state."""
     radius_m = fdm["position/radius-to-vehicle-ft"] * FT
     return {"altitude": fdm["position/h-agl-ft"] * FT, "pitch_rate": fdm["velocities/q-rad_sec"],
             "airspeed": fdm["velocities/vt-fps"] * FT, "alpha": fdm["aero/alpha-rad"],
@@ -182,9 +183,9 @@ def fly_jsbsim(root: Path, airframe: Airframe, initial: torch.Tensor, commands: 
     (command k held over [t_k, t_k+1]; see the module doc for the frame alignment)."""
     fdm = make_fdm(root, airframe, -float(initial.reshape(-1)[2]), dt, planet_radius)
     initialise_jsbsim(fdm, airframe, initial, commands[0], ground_effect)
-    rows = [_jsbsim_row(fdm)]
+    rows = [jsbsim_row(fdm)]
     for k in range(len(commands)):
         set_command(fdm, commands[min(k + 1, len(commands) - 1)])
         fdm.run()
-        rows.append(_jsbsim_row(fdm))
+        rows.append(jsbsim_row(fdm))
     return Trajectory(np.arange(len(rows)) * dt, {c: np.array([r[c] for r in rows]) for c in CHANNELS})

@@ -2,7 +2,8 @@
 
 What comes across, in SI and body FRD about the loaded CG:
 - metrics: S, b, c; the aero reference point (AERORP) becomes ``wing_quarter_chord_m``, so the tables'
-  h/b is JSBSim's ``aero/h_b-mac-ft``;
+  h/b is JSBSim's ``aero/h_b-mac-ft``, and ``aero.moment_reference_m``: JSBSim's moment coefficients are
+  about the AERORP and its aero forces act there (M_cg = M_rp + r_rp x F);
 - mass balance: empty weight, CG and inertia, point masses and tank contents combined as JSBSim does
   (the empty inertia is taken about the loaded CG unshifted; point masses and tanks add m (r^2 I - r r^T)
   about the loaded CG);
@@ -55,6 +56,7 @@ APPROXIMATIONS = (
     "lift and drag act in stability axes (JSBSim: wind axes; differences are second order in beta)",
     "the propeller's p-factor and gyroscopic moments are not modelled; its roll torque is",
     "the CG and inertia are those of the initial load (JSBSim moves them as fuel burns)",
+    "thrust and the engine properties the aero functions read are steady state (JSBSim's engine speed lags)",
 )
 
 
