@@ -24,12 +24,22 @@ inflow speed and ``throttle`` its own throttle.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 
-if TYPE_CHECKING:
-    from .airframe import _Reader
+
+class FieldReader(Protocol):
+    """The airframe file reader the parsers here use (``airframe._Reader``): typed field access whose
+    errors name the file, the dotted field and the constraint."""
+
+    def fail(self, where: str, constraint: str) -> ValueError: ...
+
+    def get(self, data: dict, key: str, where: str, kind: type | tuple, default: Any = ...) -> Any: ...
+
+    def no_unknown(self, data: dict, allowed: set[str], where: str) -> None: ...
+
+    def text(self, data: dict, key: str, where: str, default: Any = ..., file_name: bool = False) -> str: ...
 
 #: Variables a table term may read, in the order of the physics' variable vector [N, 13]. Angles and
 #: deflections in rad, rates non-dimensional (p b/2V, q c/2V, r b/2V), airspeed m/s, density kg/m^3,
@@ -147,7 +157,7 @@ class TableSet:
 
 
 # ---------------------------------------------------------------------------------------------- parse
-def parse_term(r: _Reader, raw: Any, where: str, outputs: tuple[str, ...]) -> TableTerm:
+def parse_term(r: FieldReader, raw: Any, where: str, outputs: tuple[str, ...]) -> TableTerm:
     """Validate one JSON table term whose output is one of ``outputs``."""
     if not isinstance(raw, dict):
         raise r.fail(where, "expected an object like {\"output\": \"CL\", \"axes\": [...], \"values\": ...}")
@@ -197,7 +207,7 @@ def parse_term(r: _Reader, raw: Any, where: str, outputs: tuple[str, ...]) -> Ta
                      tuple(breakpoints), values)
 
 
-def _numbers(r: _Reader, data: dict, key: str, where: str) -> np.ndarray:
+def _numbers(r: FieldReader, data: dict, key: str, where: str) -> np.ndarray:
     value = r.get(data, key, where, list)
     if not all(isinstance(v, int | float) and not isinstance(v, bool) for v in value):
         raise r.fail(f"{where}.{key}", "expected a list of numbers")
@@ -207,7 +217,7 @@ def _numbers(r: _Reader, data: dict, key: str, where: str) -> np.ndarray:
     return out
 
 
-def parse_terms(r: _Reader, raw: Any, where: str, outputs: tuple[str, ...]) -> list[TableTerm]:
+def parse_terms(r: FieldReader, raw: Any, where: str, outputs: tuple[str, ...]) -> list[TableTerm]:
     """A JSON list of table terms."""
     if not isinstance(raw, list):
         raise r.fail(where, "expected a list of table terms")

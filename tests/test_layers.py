@@ -26,7 +26,7 @@ PACKAGE_DIR = Path(__file__).resolve().parents[1] / ROOT
 #: allows it; ``objectives`` is the deprecated alias of ``recipes``.
 LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("constants", ("falcon_rl.constants", "falcon_rl._lazy")),
-    ("airframe", ("falcon_rl.airframe",)),
+    ("airframe", ("falcon_rl.airframe", "falcon_rl.airframe_tables")),
     ("physics / recording", ("falcon_rl.physics", "falcon_rl.recording")),
     ("envs / transforms / baselines / policies / validation / derive",
      ("falcon_rl.envs", "falcon_rl.transforms", "falcon_rl.baselines", "falcon_rl.policies",

@@ -86,7 +86,8 @@ def import_jsbsim_command(args: argparse.Namespace) -> int:
         raise UsageError("importing a JSBSim aircraft needs the jsbsim package: "
                          "pip install 'falcon-rl[jsbsim]'")
     from ..airframe import AirframeError, parse_airframe
-    from ..validation.jsbsim_import import JSBSimImportError, import_jsbsim
+    from ..validation.jsbsim_import import JSBSimImportError
+    from ..validation.jsbsim_import_build import import_jsbsim
 
     source = str(args.geometry)
     stem = Path(source).stem if source.endswith(".xml") else source

@@ -180,12 +180,3 @@ def xml_root(path: Path) -> ET.Element:
         return ET.parse(path).getroot()
     except ET.ParseError as exc:
         raise JSBSimImportError(f"{path}: not valid XML ({exc})") from None
-
-
-def import_jsbsim(name_or_path: str, name: str | None = None, seed: int = 0) -> Imported:
-    """Read a JSBSim aircraft into an airframe document (see the module doc) and a report."""
-    from .jsbsim_import_build import build_document
-
-    root, path, model = resolve(name_or_path)
-    el = xml_root(path)
-    return build_document(root, path, model, el, name or model, np.random.default_rng(seed))

@@ -22,8 +22,10 @@ from .jsbsim_import import (
     location,
     mass_properties,
     measure,
+    resolve,
     surface_limits,
     to_body,
+    xml_root,
 )
 from .jsbsim_sampling import AXES, Flight, PropertyContext, V, convert
 
@@ -330,3 +332,10 @@ def _rounded(value: Any) -> Any:
     if isinstance(value, np.ndarray):
         return _rounded(value.tolist())
     return value
+
+
+def import_jsbsim(name_or_path: str, name: str | None = None, seed: int = 0) -> Imported:
+    """Read a JSBSim aircraft (a name in the jsbsim package's library or an XML path) into an airframe
+    document (see ``jsbsim_import``'s module doc) and a report."""
+    root, path, model = resolve(name_or_path)
+    return build_document(root, path, model, xml_root(path), name or model, np.random.default_rng(seed))
