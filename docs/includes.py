@@ -9,7 +9,8 @@ a higher level; ``""`` names the text before the first section), ``<!-- include 
 whole file, and a file that is not Markdown comes as a code block. An indented directive (inside an
 admonition) indents what it includes. Paths are relative to the repository root. ``hooks.py`` applies
 them to every page; a missing file or section is a warning, so the strict build fails on it. Links
-and images of an included file that point into ``docs/`` (``](docs/images/x.png)``) are rebased onto
+and images of an included file that point into ``docs/`` (``](docs/images/x.png)``, or
+``](../docs/images/x.png)`` from a file in a folder) are rebased onto
 the site (``](images/x.png)``), so README.md and the pages at the site's top level show the same
 pictures.
 """
@@ -24,7 +25,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 DIRECTIVE = re.compile(r'^(?P<indent>[ \t]*)<!-- include (?P<path>[^\s"]+)'
                        r'(?: "(?P<section>[^"]*)")? -->[ \t]*$', re.M)
-DOCS_LINK = re.compile(r"\]\(docs/")
+DOCS_LINK = re.compile(r"\]\((?:\.\./)*docs/")
 HEADING = re.compile(r"^(#{1,6}) +(.+?) *#*$")
 LANGUAGES = {".py": "python", ".sh": "bash", ".json": "json", ".toml": "toml", ".yml": "yaml",
              ".yaml": "yaml"}
