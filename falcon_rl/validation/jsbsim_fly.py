@@ -25,7 +25,6 @@ fast part of a doublet.
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -40,6 +39,7 @@ from ..physics.dynamics import air_data
 from ..physics.ground_effect import GE_INDUCED, GE_OFF
 from ..physics.rotations import quaternion_to_euler
 from ..physics.simulator import Simulator
+from .jsbsim_engine import quiet_fdm
 from .jsbsim_export import GE_SWITCH, SURFACE_CMD, SURFACE_NAMES, THROTTLE_CMD
 
 #: WGS84 equatorial radius, m.
@@ -111,19 +111,7 @@ def write_planet(path: Path, start_height: float, radius: float = PLANET_RADIUS)
 def make_fdm(root: Path, airframe: Airframe, start_height: float, dt: float = 0.01,
              planet_radius: float = PLANET_RADIUS):
     """A JSBSim FDM of the exported ``airframe`` under ``root``, on the comparison planet."""
-    import jsbsim
-
-    previous = os.environ.get("JSBSIM_DEBUG")
-    os.environ["JSBSIM_DEBUG"] = "0"  # read by the constructor: no banner on stdout
-    try:
-        fdm = jsbsim.FGFDMExec(str(root))
-    finally:
-        if previous is None:
-            del os.environ["JSBSIM_DEBUG"]
-        else:
-            os.environ["JSBSIM_DEBUG"] = previous
-    fdm.set_debug_level(0)
-    fdm.disable_output()
+    fdm = quiet_fdm(root)
     fdm.set_dt(dt)  # before loading: JSBSim computes its filter coefficients with the dt at load time
     planet = write_planet(root / f"planet_{airframe.name}.xml", start_height, planet_radius)
     if not fdm.load_model(airframe.name):
