@@ -9,7 +9,7 @@ import torch
 from tensordict.nn import TensorDictModuleBase
 from torchrl.envs.utils import check_env_specs
 
-from falcon_rl import list_airframes, make_env
+from falcon_rl import list_airframes, load_airframe, make_env
 from falcon_rl.envs.tasks import task_names, task_spec
 
 #: 20 Hz control (the shipped recipes' rate) keeps 10 s at 200 env steps.
@@ -33,9 +33,22 @@ def controller(env, airframe: str, task: str) -> TensorDictModuleBase:
     return _CONTROLLERS[key]
 
 
-@pytest.mark.parametrize("backend", ["torch", "warp"])
-@pytest.mark.parametrize("task", task_names())
-@pytest.mark.parametrize("airframe", list_airframes())
+def _cases() -> list:
+    """(airframe, task, backend) of every shipped airframe, task and fast backend; an imported airframe's
+    torch cases are slow (its tabulated aero in eager torch: ~10 s a case) and its warp cases run by
+    default (the backends' parity on the tables is tests/test_tabulated_aero.py's)."""
+    cases = []
+    for airframe in list_airframes():
+        imported = load_airframe(airframe).provenance.get("imported_from") is not None
+        for task in task_names():
+            for backend in ("torch", "warp"):
+                marks = [pytest.mark.slow] if imported and backend == "torch" else []
+                cases.append(pytest.param(airframe, task, backend, marks=marks,
+                                          id=f"{airframe}-{task}-{backend}"))
+    return cases
+
+
+@pytest.mark.parametrize(("airframe", "task", "backend"), _cases())
 def test_airframe_flies_task(airframe: str, task: str, backend: str):
     env = make_env(task, airframe, num_envs=2, backend=backend, seed=0, decimation=DECIMATION)
     check_env_specs(env, seed=0)
