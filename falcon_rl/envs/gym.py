@@ -79,6 +79,16 @@ def single_spaces(env: EnvBase) -> tuple[spaces.Box, spaces.Box]:
     return box(env.observation_spec["observation"]), box(env.action_spec)
 
 
+def float_array(action: object, num_envs: int, action_dim: int, name: str = "action") -> np.ndarray:
+    """``action`` as a NumPy array of a real floating dtype (no copy when it is one), or the action
+    contract's one-line ValueError naming the expected shape [N, A]."""
+    array = np.asarray(action)
+    if array.dtype.kind != "f":
+        raise ValueError(f"{name} must be a real floating array of shape [{num_envs}, {action_dim}], "
+                         f"got dtype {array.dtype}")
+    return array
+
+
 def action_tensor(action: object, num_envs: int, action_dim: int, name: str = "action") -> torch.Tensor:
     """An [N, A] real floating tensor of ``action`` (a view of a writeable C-contiguous array, else a
     copy; not yet cast, clamped or moved), or a one-line ValueError: not a numeric array, a bool,
@@ -86,10 +96,7 @@ def action_tensor(action: object, num_envs: int, action_dim: int, name: str = "a
     if isinstance(action, torch.Tensor):
         tensor = action
     else:
-        array = np.asarray(action)
-        if array.dtype.kind != "f":
-            raise ValueError(f"{name} must be a real floating array of shape [{num_envs}, {action_dim}], "
-                             f"got dtype {array.dtype}")
+        array = float_array(action, num_envs, action_dim, name)
         if not (array.flags.writeable and array.flags.c_contiguous):
             array = np.array(array)
         try:
@@ -201,11 +208,7 @@ class CoreAircraftEnv(gymnasium.Env):
             raise ValueError(f"action must have shape [{self._action_dim}], got {list(shape)}")
         fast = None if self.core is None else self.core.numpy_step
         if fast is not None:
-            array = np.asarray(action)
-            if array.dtype.kind != "f":
-                raise ValueError(f"action must be a real floating array of shape [1, {self._action_dim}], "
-                                 f"got dtype {array.dtype}")
-            out = fast.step(array)
+            out = fast.step(float_array(action, 1, self._action_dim))
         elif self.core is not None:
             step = self.core.step(action_tensor(np.asarray(action)[None], 1, self._action_dim))
             out = (step.observation[0], step.reward[0].item(), bool(step.terminated[0]),

@@ -99,7 +99,9 @@ class TensorCore:
         """Step every env with ``action`` [N, A]; with ``autoreset`` reset the done rows in the same step
         (SAME_STEP: their observation and entries become those of the reset)."""
         env, k = self.env, len(self.keys)
-        out = env.step_tensors(action, with_state=False)  # the wrappers publish no state
+        # The wrappers publish no state; the step's own buffers are read (copied into host arrays) below,
+        # before the next step overwrites them (a reset does not touch them).
+        out = env.step_tensors(action, with_state=False, copy=False)
         code = out.reason.to(self.dtype) if self.pack else out.reason  # < 8: exact in the float pack
         tensors = [out.observation, out.reward, code, out.truncated, out.non_finite, *self._entries()]
         if autoreset:
