@@ -94,7 +94,8 @@ class TrivialEnv(EnvBase):
         return TensorDict(fields, batch_size=self.batch_size, device=self.device)
 
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
-        return TensorDict(dict(self._out), batch_size=self.batch_size, device=self.device)
+        # Unchecked, as TorchRL's own Gym-like envs and the lean FixedWingEnv build their outputs.
+        return TensorDict._new_unsafe(dict(self._out), batch_size=self.batch_size, device=self.device)
 
     def _set_seed(self, seed: int | None) -> None:
         """Nothing to seed."""

@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
+from tensordict import TensorDict
 
 from falcon_rl.envs import make_env
 from falcon_rl.envs.gym import CoreAircraftEnv
@@ -82,6 +83,29 @@ def test_one_launch_step_equals_the_staged_step(task: str, options: dict) -> Non
         if bool(done.any()):
             one.reset_tensors(done), two.reset_tensors(done)
     assert int(seen.max()) > 0  # terminations (ground contact, NaN actions) happened and matched
+
+
+def test_the_lean_torchrl_step_hands_out_what_the_staged_step_does_in_new_tensors() -> None:
+    """The lean TorchRL step (the kernel's outputs and done flags, copied once) against the staged step
+    through ``_output``: same keys, values, dtypes and shapes; a rollout keeps every step's values."""
+    one, two = _pair("altitude", turbulence="light")
+    generator = torch.Generator().manual_seed(3)
+    for step in range(40):
+        if step == 10:
+            _dive(one), _dive(two)
+        action = _actions(step, 2, generator).float()
+        got = one._step(TensorDict(action=action, batch_size=[N]))
+        staged = two._step_glued(action, with_state=False)
+        want = two._output(staged.observation, None, staged.reason, staged.truncated.unsqueeze(-1),
+                           reward=staged.reward.unsqueeze(-1))
+        assert set(got.keys()) == set(want.keys())
+        for key in want.keys():  # noqa: SIM118 (a TensorDict iterates its keys only this way)
+            assert got[key].dtype == want[key].dtype and torch.equal(got[key], want[key]), (step, key)
+        done = got["done"].view(N)
+        if bool(done.any()):
+            one.reset_tensors(done), two.reset_tensors(done)
+    rollout = one.rollout(5, break_when_any_done=False)
+    assert not torch.equal(rollout["next", "observation"][:, 0], rollout["next", "observation"][:, 4])
 
 
 def test_the_full_env_checks_the_derived_state_too() -> None:

@@ -292,7 +292,16 @@ class FixedWingEnv(EnvBase):
         return self.task.observe(simulator_layout(state, self.config.num_envs))
 
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
-        step = self.step_tensors(tensordict.get("action", None))
+        action = tensordict.get("action", None)
+        stepper = self.env_stepper() if self.config.lean else None
+        if stepper is not None:  # lean, one launch: the kernel wrote every output, finite and flagged
+            refuse_bad_action(action, self.config.num_envs, self.task.action_dim)
+            assert isinstance(action, torch.Tensor)
+            # The entries are new tensors of the batch's shape and device, as the checked constructor
+            # would make sure of: TorchRL's own Gym-like envs build their outputs the same way.
+            return TensorDict._new_unsafe(stepper.torchrl_outputs(action), batch_size=self.batch_size,
+                                          device=self.device)
+        step = self.step_tensors(action)
         out = self._output(step.observation, step.state, step.reason, step.truncated.unsqueeze(-1),
                            reward=step.reward.unsqueeze(-1))
         if not self.config.lean and bool(step.non_finite.any()):  # lean: the outputs are clean already

@@ -14,7 +14,8 @@ of the engine and the task did, with the same float32 arithmetic:
 5. the non-finite guard of ``FixedWingEnv.step_tensors``: a row whose state, gusts, clock, observation
    or reward is not finite, or whose action had a NaN, ends with reason "non_finite" and its non-finite
    outputs zeroed;
-6. the episode step count and the truncation flag (at ``max_episode_steps``, not when terminated).
+6. the episode step count and the done flags: terminated (a reason), truncated (at
+   ``max_episode_steps``, not when terminated) and done (either).
 
 The kernels of the built-in tasks are made at import, all in this module, so that Warp compiles one
 module for them (the physics and every task). :class:`FusedEnvStep` binds the views (the engine's
@@ -72,7 +73,9 @@ class EnvViews:
     channels: wp.array(dtype=wp.int32)  # [A] the command channel of each action entry
     command_buffer: wp.array(dtype=wp.vec4)  # [N] the task's command (trim in undriven channels)
     step_count: wp.array(dtype=wp.int64)  # [N] env steps since the reset
+    terminated: wp.array(dtype=wp.bool)  # [N] out: a termination reason (reason > 0)
     truncated: wp.array(dtype=wp.bool)  # [N] out: the horizon reached, not terminated
+    done: wp.array(dtype=wp.bool)  # [N] out: terminated or truncated
     non_finite: wp.array(dtype=wp.bool)  # [N] out: terminated with reason "non_finite"
     max_episode_steps: wp.int64
 
@@ -109,7 +112,7 @@ def vec3_finite(a: wp.vec3) -> bool:
 def finish_step(v: EnvViews, e: EngineViews, observation: wp.array2d(dtype=wp.float32),
                 reward: wp.array(dtype=wp.float32), reason: wp.array(dtype=wp.int64), nan_action: bool,
                 i: int):
-    """The non-finite guard, the step count and the truncation flag of env i (steps 5-6)."""
+    """The non-finite guard, the step count and the done flags of env i (steps 5-6)."""
     finite = bool(wp.isfinite(e.time[i]) and wp.isfinite(reward[i]))
     finite = finite and vec3_finite(e.gust_velocity_body[i]) and vec3_finite(e.gust_rate_body[i])
     for k in range(e.x.shape[1]):
@@ -129,7 +132,11 @@ def finish_step(v: EnvViews, e: EngineViews, observation: wp.array2d(dtype=wp.fl
     v.non_finite[i] = bad
     count = v.step_count[i] + wp.int64(1)
     v.step_count[i] = count
-    v.truncated[i] = count >= v.max_episode_steps and reason[i] == wp.int64(0)
+    terminated = reason[i] > wp.int64(0)
+    truncated = count >= v.max_episode_steps and not terminated
+    v.terminated[i] = terminated
+    v.truncated[i] = truncated
+    v.done[i] = terminated or truncated
 
 
 def env_step_kernel(task_step: Any, buffers: type, constants: type) -> Any:
@@ -164,8 +171,9 @@ ENV_STEP_KERNELS: dict[Any, Any] = {
 
 class FusedEnvStep:
     """The recorded launches of an env's whole step (one per CPU slice of the engine) with its buffers:
-    the action [N, A] as given, the truncated and non_finite flags [N] bool; the observation, reward and
-    reason buffers are the task's fused step's (:class:`~.warp_common.FusedStep`). Every buffer is
+    the action [N, A] as given, the done flags (``flags`` [3, N, 1] bool: terminated, truncated, done;
+    ``truncated`` [N] is a view of its middle row) and ``non_finite`` [N] bool; the observation, reward
+    and reason buffers are the task's fused step's (:class:`~.warp_common.FusedStep`). Every buffer is
     overwritten by the next call. It binds again when the engine binds again or a tensor it reads moved.
 
     ``numpy_views()`` gives NumPy views of the action and output buffers on the CPU, for callers that
@@ -177,7 +185,8 @@ class FusedEnvStep:
         n, device = env.config.num_envs, env.device
         task = env.task
         self.raw_action = torch.zeros(n, task.action_dim, device=device, dtype=torch.float32)
-        self.truncated = torch.zeros(n, device=device, dtype=torch.bool)
+        self.flags = torch.zeros(3, n, 1, device=device, dtype=torch.bool)
+        self.truncated = self.flags[1].view(n)
         self.non_finite = torch.zeros(n, device=device, dtype=torch.bool)
         self.channels = torch.as_tensor(task.action_channels, device=device, dtype=torch.int32)
         self._launches: list[Any] = []
@@ -204,7 +213,10 @@ class FusedEnvStep:
         v.channels = wp.from_torch(self.channels)
         v.command_buffer = wp.from_torch(env.task.command_buffer, dtype=wp.vec4)
         v.step_count = wp.from_torch(env.step_count, dtype=wp.int64)
+        n = env.config.num_envs
+        v.terminated = wp.from_torch(self.flags[0].view(n), dtype=wp.bool)
         v.truncated = wp.from_torch(self.truncated, dtype=wp.bool)
+        v.done = wp.from_torch(self.flags[2].view(n), dtype=wp.bool)
         v.non_finite = wp.from_torch(self.non_finite, dtype=wp.bool)
         v.max_episode_steps = int(env.max_episode_steps)
         inputs = [views, params, settings, int(env.config.decimation), int(env.sim.stop_at_ground), v,
@@ -232,6 +244,17 @@ class FusedEnvStep:
         self.launch()
         t = self.task_step
         return t.observation, t.reward, t.reason, self.truncated, self.non_finite
+
+    def torchrl_outputs(self, action: torch.Tensor) -> dict[str, torch.Tensor]:
+        """A lean TorchRL step's outputs for ``action`` [N, A] (checked by the caller) as new tensors (the
+        caller may keep them): ``observation`` [N, D], ``reward`` [N, 1], ``termination_reason`` [N, 1]
+        long, ``terminated``, ``truncated``, ``done`` [N, 1] bool; five copies and no other operation."""
+        self(action)
+        t, n = self.task_step, self.env.config.num_envs
+        terminated, truncated, done = self.flags.clone().unbind(0)
+        return {"observation": t.observation.clone(), "termination_reason": t.reason.clone().view(n, 1),
+                "terminated": terminated, "truncated": truncated, "done": done,
+                "reward": t.reward.clone().view(n, 1)}
 
     def numpy_views(self) -> dict[str, np.ndarray]:
         """NumPy views (CPU only) of ``action`` [N, A] (write the step's action here), ``observation``
