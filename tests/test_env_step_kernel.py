@@ -99,7 +99,7 @@ def test_the_lean_torchrl_step_hands_out_what_the_staged_step_does_in_new_tensor
         want = two._output(staged.observation, None, staged.reason, staged.truncated.unsqueeze(-1),
                            reward=staged.reward.unsqueeze(-1))
         assert set(got.keys()) == set(want.keys())
-        for key in want.keys():  # noqa: SIM118 (a TensorDict iterates its keys only this way)
+        for key in want.keys():  # noqa: SIM118 (iterating a TensorDict gives its rows)
             assert got[key].dtype == want[key].dtype and torch.equal(got[key], want[key]), (step, key)
         done = got["done"].view(N)
         if bool(done.any()):
