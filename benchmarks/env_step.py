@@ -8,8 +8,9 @@ shared machine hits every case alike):
 - ``physics``: ``Simulator.step(command, substeps=d)`` of the env's own simulator (a dedicated env,
   input checks off as in ``falcon-rl bench``), d = the env's decimation: the physics floor;
 - ``physics checked``: the same with the input checks on, as the env builds its simulator;
-- ``torchrl floor``: a trivial TorchRL ``EnvBase`` with the same batch, observation and action widths,
-  reward and done flags, whose ``_step`` returns preallocated tensors: what TorchRL itself costs;
+- ``torchrl floor``: a trivial TorchRL ``EnvBase`` with the lean env's keys and widths (observation,
+  termination_reason, action, reward and done flags) whose ``_step`` returns preallocated tensors in
+  an unchecked TensorDict: what TorchRL itself costs;
 - ``env``, ``env lean``, ``env unfused``, ``env lean unfused``: the task env
   (``make_env(task, airframe, num_envs=N, backend, seed=0, decimation=d, lean=, fused=)``).
 
@@ -45,6 +46,7 @@ from tqdm import tqdm
 
 from falcon_rl import make_env
 from falcon_rl.bench import BenchCase, _cpu_name, _time_blocks, env_stepper, plot
+from falcon_rl.envs.tasks import TERMINATION_REASONS
 
 #: Case label -> (kind, make_env options); kind in "physics", "physics checked", "torchrl", "env".
 CASES: dict[str, tuple[str, dict[str, bool]]] = {
@@ -72,20 +74,25 @@ class EnvStepCase(BenchCase):
 
 
 class TrivialEnv(EnvBase):
-    """Batch [N] env with an [N, D] observation, [N, A] action in [-1, 1], [N, 1] reward and done flags,
-    whose ``_step`` and ``_reset`` return preallocated tensors (no per-step work of its own)."""
+    """Batch [N] env with the lean task env's keys: an [N, D] observation, an [N, 1] long
+    termination_reason, [N, A] action in [-1, 1], [N, 1] reward and done flags, whose ``_step`` and
+    ``_reset`` return preallocated tensors (no per-step work of its own)."""
 
     def __init__(self, num_envs: int, obs_dim: int, action_dim: int, device: str) -> None:
         super().__init__(device=device, batch_size=torch.Size([num_envs]))
         n = num_envs
-        self.observation_spec = Composite(observation=Unbounded(shape=(n, obs_dim), device=device),
-                                          shape=(n,), device=device)
+        self.observation_spec = Composite(
+            observation=Unbounded(shape=(n, obs_dim), device=device),
+            termination_reason=Categorical(len(TERMINATION_REASONS), shape=(n, 1), dtype=torch.long,
+                                           device=device),
+            shape=(n,), device=device)
         self.action_spec = Bounded(-1.0, 1.0, shape=(n, action_dim), device=device)
         self.reward_spec = Unbounded(shape=(n, 1), device=device)
         flags = ("done", "terminated", "truncated")
         self.done_spec = Composite({k: Categorical(2, shape=(n, 1), dtype=torch.bool, device=device)
                                     for k in flags}, shape=(n,), device=device)
         self._out = {"observation": torch.zeros(n, obs_dim, device=device),
+                     "termination_reason": torch.zeros(n, 1, dtype=torch.long, device=device),
                      "reward": torch.zeros(n, 1, device=device),
                      **{k: torch.zeros(n, 1, dtype=torch.bool, device=device) for k in flags}}
 
