@@ -95,6 +95,20 @@ def test_eval_climb_descend_trim_json(capsys, tmp_path):
     assert (tmp_path / "climb_descend_volantex_ranger_trim.png").stat().st_size > 10_000
 
 
+def test_eval_flies_on_the_torch_threads_it_is_given(capsys, tmp_path):
+    """One thread by default (small networks and batches), any count on request."""
+    import torch
+
+    before = torch.get_num_threads()
+    try:
+        for argv, threads in (([], 1), (["--threads", "2"], 2)):
+            code, _, _ = run_json(capsys, "eval", "--controller", "trim", "--episodes", "1",
+                                  "--seconds", "0.1", "--out", str(tmp_path), *argv)
+            assert code == 0 and torch.get_num_threads() == threads
+    finally:
+        torch.set_num_threads(before)
+
+
 @pytest.mark.parametrize(
     ("argv", "needle"),
     [
@@ -113,6 +127,7 @@ def test_eval_climb_descend_trim_json(capsys, tmp_path):
         (["--task", "altitude", "--controller", "lqr", "--policy-seed", "1"],
          "--policy-seed picks a shipped ppo/sac/td3 policy; it does not apply to --controller lqr"),
         (["--task", "altitude", "--controller", "ppo", "--policy-seed", "-1"], "--policy-seed"),
+        (["--task", "altitude", "--controller", "trim", "--threads", "0"], "--threads"),
     ],
 )
 def test_eval_bad_input_exits_2_with_one_line(capsys, tmp_path, argv, needle):

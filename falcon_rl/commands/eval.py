@@ -25,6 +25,7 @@ from ._common import (
     nonnegative_int,
     output_dir,
     positive_int,
+    use_threads,
 )
 
 NAME = "eval"
@@ -77,6 +78,7 @@ def run(args: argparse.Namespace) -> int:
     from ..envs.tasks import task_spec
 
     check_device(args.device)
+    use_threads(args)
     airframe = load_airframe(args.airframe)
     spec = task_spec(args.task)
     protocol = spec.protocol_function()

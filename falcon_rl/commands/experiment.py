@@ -35,6 +35,7 @@ from ._common import (
     emit,
     output_dir,
     positive_int,
+    use_threads,
 )
 
 NAME = "experiment"
@@ -90,6 +91,7 @@ def _parse(args: argparse.Namespace) -> tuple[list[str], dict[str, str], str, Pa
 
 
 def run(args: argparse.Namespace) -> int:
+    use_threads(args)
     if args.action != "ablation":
         from ._studies import run_studies
 

@@ -16,7 +16,15 @@ from __future__ import annotations
 
 import argparse
 
-from ._common import UsageError, add_flight_arguments, check_controller, check_device, emit, positive_int
+from ._common import (
+    UsageError,
+    add_flight_arguments,
+    check_controller,
+    check_device,
+    emit,
+    positive_int,
+    use_threads,
+)
 from ._views import add_view_arguments, check_view_arguments, write_views
 
 NAME = "fly"
@@ -46,6 +54,7 @@ def run(args: argparse.Namespace) -> int:
     from ..envs.tasks import task_spec
 
     check_device(args.device)
+    use_threads(args)
     airframe = load_airframe(args.airframe)
     label = check_controller(args.controller, args.task, args.airframe)
     options: dict = {}

@@ -278,11 +278,15 @@ def normalize_result(result: Any) -> dict[str, Any]:
     return data
 
 
-def run_cell(cell: Cell, reference: str | None = None) -> dict[str, Any]:
-    """Run ``cell`` with its study's cell function (or ``reference``, "module:attribute"), after seeding
-    the global generators from :func:`global_seed`; returns the normalized result (see
-    :func:`normalize_result`) with its wall time in ``"seconds"``."""
+def run_cell(cell: Cell, reference: str | None = None, threads: int = 1) -> dict[str, Any]:
+    """Run ``cell`` with its study's cell function (or ``reference``, "module:attribute") on ``threads``
+    torch CPU threads (one: a cell's networks and batches are small, and the sweep's parallelism is its
+    workers), after seeding the global generators from :func:`global_seed`; returns the normalized
+    result (see :func:`normalize_result`) with its wall time in ``"seconds"``."""
+    import torch
+
     function = resolve_function(reference or cell_reference(cell.study))
+    torch.set_num_threads(threads)
     seed_everything(global_seed(cell))
     start = time.perf_counter()
     raw = function(cell)
