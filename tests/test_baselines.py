@@ -90,6 +90,18 @@ def test_mppi_plans_inside_the_action_spec():
         MPPI(env, MPPIConfig(samples=2, plan_dt=0.1, replan_seconds=0.05))
 
 
+def test_mppi_samples_from_the_env_seed_unless_given_its_own():
+    """Each evaluation seed (an experiment draw) samples its own planning noise; the same seed the
+    same noise; an explicit ``MPPIConfig.seed`` wins."""
+    def first_noise(env_seed: int, seed: int | None = None) -> torch.Tensor:
+        env = make_env("altitude", "volantex_ranger", num_envs=1, seed=env_seed, decimation=1)
+        return MPPI(env, MPPIConfig(samples=4, seed=seed))._smooth_noise(1, 4, 5, 2)
+
+    assert torch.equal(first_noise(3), first_noise(3))
+    assert not torch.equal(first_noise(3), first_noise(4))
+    assert torch.equal(first_noise(3, seed=7), first_noise(4, seed=7))
+
+
 def test_mppi_reads_the_maneuver_stream_ahead():
     env = make_env("attitude", "volantex_ranger", num_envs=2, seed=0, maneuver="s_turn", decimation=1)
     policy = MPPI(env, MPPIConfig(samples=4, horizon_seconds=1.0, plan_dt=0.1))
