@@ -52,7 +52,6 @@ SURFACE_OUTPUTS = {
     "rudder": "fcs/rudder-pos-rad",
 }
 APPROXIMATIONS = (
-    "alpha-dot terms use q (alpha_dot ~ q, the short-period approximation)",
     "lift and drag act in stability axes (JSBSim: wind axes; differences are second order in beta)",
     "the propeller's p-factor and gyroscopic moments are not modelled; its roll torque is",
     "the CG and inertia are those of the initial load (JSBSim moves them as fuel burns)",
