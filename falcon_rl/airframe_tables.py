@@ -54,8 +54,9 @@ TABLE_VARIABLES: tuple[str, ...] = ("alpha", "beta", "elevator", "aileron", "rud
 #: The variable the physics solves rather than reads (a multiplier of exponent 1 of aero terms only).
 ALPHA_DOT_VARIABLE = "alpha_dot"
 #: Outputs of table terms: the six aero coefficients, then per thrust-map motor its thrust (N, along the
-#: thrust axis) and its reaction torque on the airframe about the thrust axis (N m, signed).
-TABLE_OUTPUTS: tuple[str, ...] = ("CL", "CD", "CY", "Cl", "Cm", "Cn", "thrust", "torque")
+#: thrust axis), its reaction torque on the airframe about the thrust axis (N m, signed) and its
+#: propeller's angular momentum about the thrust axis (N m s, signed; the gyroscopic moment h a x omega).
+TABLE_OUTPUTS: tuple[str, ...] = ("CL", "CD", "CY", "Cl", "Cm", "Cn", "thrust", "torque", "angular_momentum")
 AERO_OUTPUTS = 6
 #: Output code of the padding term (an airframe without tables still binds one-element arrays).
 NO_OUTPUT = len(TABLE_OUTPUTS)

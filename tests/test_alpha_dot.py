@@ -124,15 +124,24 @@ def test_no_rate_damping_drops_the_alpha_dot_terms():
 @pytest.mark.parametrize("ge", ["tables", "induced"])
 def test_warp_derivative_matches_torch_with_alpha_dot_terms(ge):
     pytest.importorskip("warp")
-    from falcon_rl.physics.warp_kernels import derivative_kernel
-
-    init_warp()
     sim = make_sim(parse(alpha_dot_document()), N, "warp", ge, wind=[3.0, -2.0, 0.5])
     x = random_states(sim.layout.size, N, torch.Generator().manual_seed(5)).float()
     command = torch.zeros(N, 4)
+    ref = assert_warp_derivative_matches_torch(sim, x, command)
+    plain = derivative(x, command, make_sim(parse(tabulated_document()), N, "torch", ge,
+                                            wind=[3.0, -2.0, 0.5]).params, sim.air)
+    assert (plain - ref)[:, S.ANGULAR_RATE].abs().max() > 1e-2  # the alpha-dot terms act
+
+
+def assert_warp_derivative_matches_torch(sim, x: torch.Tensor, command: torch.Tensor) -> torch.Tensor:
+    """The Warp derivative kernel against ``dynamics.derivative`` at float32 states x [N, S] of a Warp
+    simulator; returns the torch derivative."""
+    from falcon_rl.physics.warp_kernels import derivative_kernel
+
+    init_warp()
     ref = derivative(x, command, sim.params, sim.air)
     out = torch.zeros_like(x)
-    wp.launch(derivative_kernel, dim=N, device="cpu",
+    wp.launch(derivative_kernel, dim=x.shape[0], device="cpu",
               inputs=[wp.from_torch(x), wp.from_torch(command, dtype=wp.vec4),
                       wp.from_torch(sim.wind_ned, dtype=wp.vec3),
                       wp.from_torch(sim.gust_velocity_body, dtype=wp.vec3),
@@ -140,9 +149,7 @@ def test_warp_derivative_matches_torch_with_alpha_dot_terms(ge):
                       wp.from_torch(out)])
     scale = ref.abs().amax(dim=0, keepdim=True).clamp_min(1e-6)
     assert ((out - ref).abs() <= 1e-5 * ref.abs() + 2e-5 * scale).all()
-    plain = derivative(x, command, make_sim(parse(tabulated_document()), N, "torch", ge,
-                                            wind=[3.0, -2.0, 0.5]).params, sim.air)
-    assert (plain - ref)[:, S.ANGULAR_RATE].abs().max() > 1e-2  # the alpha-dot terms act
+    return ref
 
 
 def test_one_second_torch_and_warp_agree_with_alpha_dot_terms():

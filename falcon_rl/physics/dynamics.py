@@ -113,7 +113,7 @@ def evaluate(x: torch.Tensor, p: ModelParams, air: AirInputs | None = None) -> E
     first_throttle = throttle[:, 0] if throttle.shape[1] else torch.zeros_like(height)
     aero = aero_forces(airspeed, alpha, beta, omega_air, surfaces, density,
                        wing_height / p.span, p, first_throttle)
-    f_prop, m_prop, thrust = propulsion_forces(v_air, throttle, density, p)
+    f_prop, m_prop, thrust = propulsion_forces(v_air, throttle, density, p, omega)
     if aero.alpha_dot_force is not None:
         steady = translational_acceleration(aero.force_body + f_prop, rot, omega, vel, p)
         per_unit = aero.alpha_dot_force / p.mass[:, None]

@@ -121,6 +121,8 @@ PARAMETER_TABLE: tuple[ParamRow, ...] = (
              unit="N m s^2", doc="k_tp"),
     ParamRow("torque_speed_constant", "[N, M]", _motors("torque_speed_constant"), randomizable=True,
              unit="rad/s", doc="k_omega, at full throttle"),
+    ParamRow("motor_p_factor", "[N, M]", _motors("p_factor"), randomizable=True, unit="m/rad",
+             doc="thrust-map motors: thrust-line shift per rad of inflow angle (p-factor)"),
     ParamRow("throttle_time_constant", "[N, M]", _motors("time_constant"), randomizable=True, unit="s",
              doc="first-order throttle lag"),
     ParamRow("actuator_second_order", "[N, 3]", _surfaces(lambda ac: ac.order == 2), dtype="bool",

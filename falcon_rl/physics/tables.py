@@ -6,9 +6,10 @@ x [N, 14] holds the variables of ``airframe_tables.TABLE_VARIABLES``. Each axis 
 its first and last breakpoint and interpolates linearly between breakpoints, so a term is exact at the
 nodes and multilinear in each cell. The terms live in shared, flat arrays (``ModelParams.table_*``: the
 packed index [K, 12], breakpoints [B], values [V]) with a per-env gain [N, K]; terms are sorted by
-output and ``table_output_start`` [9] gives each output's range. The aero model sums outputs 0..5 (the
-coefficients, ``aero.py``), the propulsion model outputs 6 and 7 (thrust N and torque N m of each
-thrust-map motor, ``propulsion.py``). Every airframe uses the same code: no recompile per aircraft.
+output and ``table_output_start`` [NO_OUTPUT + 1] gives each output's range. The aero model sums
+outputs 0..5 (the coefficients, ``aero.py``), the propulsion model outputs 6, 7 and 8 (thrust N, torque
+N m and angular momentum N m s of each thrust-map motor, ``propulsion.py``). Every airframe uses the
+same code: no recompile per aircraft.
 
 Terms that multiply ``alpha_dot`` (exponent 1, never an axis: ``airframe_tables`` refuses the rest) are
 summed apart by :func:`split_alpha_dot` / :func:`table_output_split_wp`, evaluated at alpha_dot = 1: each
@@ -41,7 +42,7 @@ ALPHA_DOT = TABLE_VARIABLES.index(ALPHA_DOT_VARIABLE)
 #: Bit shift of alpha_dot's exponent in a packed multiplier code.
 ALPHA_DOT_SHIFT = MULTIPLIER_BITS * ALPHA_DOT
 #: Output codes of the propulsion terms.
-THRUST_OUTPUT, TORQUE_OUTPUT = 6, 7
+THRUST_OUTPUT, TORQUE_OUTPUT, ANGULAR_MOMENTUM_OUTPUT = 6, 7, 8
 #: Corners of a 3-D cell: bit a of c selects the upper breakpoint of axis a.
 _CORNERS = torch.tensor([[(c >> a) & 1 for a in range(MAX_TABLE_AXES)] for c in range(8)])
 
@@ -98,7 +99,7 @@ def table_outputs(x: torch.Tensor, p: ModelParams, gains: torch.Tensor | None = 
 
 def sum_by_output(terms: torch.Tensor, p: ModelParams) -> torch.Tensor:
     """[N, NO_OUTPUT] the per-term values [N, K] summed per output."""
-    onehot = torch.nn.functional.one_hot(p.table_index[:, 0].long(), NO_OUTPUT + 1).to(terms.dtype)  # [K, 9]
+    onehot = torch.nn.functional.one_hot(p.table_index[:, 0].long(), NO_OUTPUT + 1).to(terms.dtype)
     return (terms @ onehot)[:, :NO_OUTPUT]
 
 
