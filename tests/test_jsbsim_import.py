@@ -141,3 +141,18 @@ def test_propeller_moments_match_jsbsims_own(alpha, beta, rates):
     gyroscopic = 1.67 * SLUG_FT2 * spin * np.abs(rates).max()  # N m: the c172p's propeller ixx 1.67 slug ft^2
     assert gyroscopic > 50.0  # the check sees the gyroscopic moment (N m)
     np.testing.assert_allclose(moment[0].numpy(), jsbsim_moment, rtol=0.0, atol=0.01 * gyroscopic + 1.0)
+
+
+@pytest.mark.parametrize(("airframe", "model", "airspeed"), [("jsbsim_c182", "c182", 40.0),
+                                                             ("jsbsim_c172p", "c172p", 50.0)])
+def test_zero_sideslip_trim_banks_like_jsbsims_full_trim(airframe, model, airspeed):
+    """JSBSim's full trim holds zero sideslip and balances the propeller's p-factor with a bank; so does
+    falcon-rl's zero-sideslip trim of the imported airframe (within 0.05 deg)."""
+    from falcon_rl.physics.trim import trim_level
+
+    fdm = jsbsim_trim(model, airspeed)
+    ours = trim_level(load_airframe(airframe), airspeed, 1000.0, ground_effect="off", lateral="zero_sideslip")
+    assert ours.bank is not None
+    jsbsim_bank = math.degrees(fdm["attitude/phi-rad"])
+    assert abs(jsbsim_bank) > 0.02  # the p-factor banks JSBSim's trim
+    assert abs(math.degrees(float(ours.bank[0])) - jsbsim_bank) < 0.05

@@ -103,3 +103,22 @@ def test_p_factor_on_a_momentum_motor_is_refused():
     del doc["propulsion"]["thrust_map"]
     with pytest.raises(AirframeError, match=re_escape("propulsion.motors[0].p_factor_m_per_rad")):
         parse(doc)
+
+
+def test_zero_sideslip_trim_balances_the_p_factor_with_a_bank():
+    """The p-factor's yaw moment: wings-level trim flies with sideslip, zero-sideslip trim (JSBSim's
+    full trim) with a small bank instead; both null every acceleration, and without a p-factor the
+    zero-sideslip trim of this symmetric airframe is wings level."""
+    from falcon_rl.physics.trim import trim_level
+
+    af = parse(propeller_document())
+    level = trim_level(af, 40.0, 500.0, ground_effect="off")
+    banked = trim_level(af, 40.0, 500.0, ground_effect="off", lateral="zero_sideslip")
+    assert abs(float(level.beta[0])) > 1e-4 and level.bank is None
+    assert banked.bank is not None and abs(float(banked.bank[0])) > 1e-4
+    assert abs(float(banked.beta[0])) < 1e-9
+    assert float(banked.residual[0]) < 1e-7
+    symmetric = trim_level(parse(propeller_document(p_factor=0.0)), 40.0, 500.0, ground_effect="off",
+                           lateral="zero_sideslip")
+    assert symmetric.bank is not None
+    torch.testing.assert_close(symmetric.alpha, level.alpha, rtol=0.0, atol=1e-3)
