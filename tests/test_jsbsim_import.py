@@ -62,41 +62,31 @@ def test_unknown_model_is_refused_by_name():
 
 
 #: (imported airframe, JSBSim model, airspeed m/s): level trims at 1000 m, zero sideslip like JSBSim's
-#: full trim. The pa28 is left out at 40 m/s (JSBSim trims it at throttle 0.978, on the flat top of its
-#: thrust curve, where the map's thrust error moves falcon-rl's trim throttle to 1.004, past full) and at
-#: 60 m/s (JSBSim's pa28 cannot trim there).
+#: full trim, both on the comparison sphere (gravity g0, no rotation: ``jsbsim_model_compare``). The pa28
+#: is left out at 40 m/s (JSBSim's own pa28 does not trim there on that sphere: it needs more than full
+#: throttle; on JSBSim's default rotating Earth, about 0.3 % less effective gravity at the equator, it
+#: trims at throttle 0.978) and at 60 m/s (JSBSim's pa28 cannot trim there).
 TRIMS = ([("jsbsim_c172p", "c172p", v) for v in (40.0, 50.0, 60.0)]
          + [("jsbsim_c182", "c182", v) for v in (40.0, 50.0, 60.0)]
          + [("jsbsim_pa28", "pa28", v) for v in (45.0, 50.0)])
-#: Tolerances: alpha (deg), elevator (deg), throttle.
-ALPHA_TOL, ELEVATOR_TOL, THROTTLE_TOL = 0.05, 0.12, 0.005
-
-
-def jsbsim_trim(model: str, airspeed: float, height: float = 1000.0):
-    """JSBSim's own ``do_simple_trim`` of ``model``, level at (airspeed m/s, height m)."""
-    fdm = quiet_fdm(Path(jsbsim.get_default_root_dir()))
-    fdm.load_model(model)
-    fdm["ic/h-sl-ft"] = height / FT
-    fdm["ic/vt-fps"] = airspeed / FT
-    fdm["ic/gamma-deg"] = 0.0
-    fdm.run_ic()
-    fdm["propulsion/set-running"] = -1
-    fdm["fcs/mixture-cmd-norm"] = 1.0
-    fdm["simulation/do_simple_trim"] = 1
-    return fdm
+#: Tolerances: alpha (deg), elevator (deg), throttle, bank (deg).
+ALPHA_TOL, ELEVATOR_TOL, THROTTLE_TOL, BANK_TOL = 0.005, 0.025, 0.002, 0.005
 
 
 @pytest.mark.parametrize(("airframe", "model", "airspeed"), TRIMS)
-def test_imported_airframes_trim_like_jsbsims_own(airframe, model, airspeed):
-    """Alpha, elevator and throttle of the imported airframe's level trim against JSBSim's."""
+def test_imported_airframes_trim_like_jsbsims_own(airframe, model, airspeed, tmp_path):
+    """Alpha, elevator, throttle and bank of the imported airframe's level trim against JSBSim's."""
     from falcon_rl.physics.trim import trim_level
+    from falcon_rl.validation.jsbsim_model_compare import jsbsim_trimmed
 
-    fdm = jsbsim_trim(model, airspeed)
-    ours = trim_level(load_airframe(airframe), airspeed, 1000.0, ground_effect="off",
-                      lateral="zero_sideslip").row(0)
+    fdm = jsbsim_trimmed(Path(jsbsim.get_default_root_dir()), model, airspeed, 1000.0, 0.01, tmp_path)
+    trim = trim_level(load_airframe(airframe), airspeed, 1000.0, ground_effect="off", lateral="zero_sideslip")
+    ours = trim.row(0)
+    assert trim.bank is not None
     assert abs(ours["alpha_deg"] - math.degrees(fdm["aero/alpha-rad"])) < ALPHA_TOL
     assert abs(ours["elevator_deg"] - math.degrees(fdm["fcs/elevator-pos-rad"])) < ELEVATOR_TOL
     assert abs(ours["throttle"] - fdm["fcs/throttle-cmd-norm"]) < THROTTLE_TOL
+    assert abs(math.degrees(float(trim.bank[0])) - math.degrees(fdm["attitude/phi-rad"])) < BANK_TOL
 
 
 def test_aero_moments_are_taken_about_the_aero_reference_point():
@@ -143,18 +133,3 @@ def test_propeller_moments_match_jsbsims_own(alpha, beta, rates):
     gyroscopic = 1.67 * SLUG_FT2 * spin * np.abs(rates).max()  # N m: the c172p's propeller ixx 1.67 slug ft^2
     assert gyroscopic > 50.0  # the check sees the gyroscopic moment (N m)
     np.testing.assert_allclose(moment[0].numpy(), jsbsim_moment, rtol=0.0, atol=0.01 * gyroscopic + 1.0)
-
-
-@pytest.mark.parametrize(("airframe", "model", "airspeed"), [("jsbsim_c182", "c182", 40.0),
-                                                             ("jsbsim_c172p", "c172p", 50.0)])
-def test_zero_sideslip_trim_banks_like_jsbsims_full_trim(airframe, model, airspeed):
-    """JSBSim's full trim holds zero sideslip and balances the propeller's p-factor with a bank; so does
-    falcon-rl's zero-sideslip trim of the imported airframe (within 0.05 deg)."""
-    from falcon_rl.physics.trim import trim_level
-
-    fdm = jsbsim_trim(model, airspeed)
-    ours = trim_level(load_airframe(airframe), airspeed, 1000.0, ground_effect="off", lateral="zero_sideslip")
-    assert ours.bank is not None
-    jsbsim_bank = math.degrees(fdm["attitude/phi-rad"])
-    assert abs(jsbsim_bank) > 0.02  # the p-factor banks JSBSim's trim
-    assert abs(math.degrees(float(ours.bank[0])) - jsbsim_bank) < 0.05
