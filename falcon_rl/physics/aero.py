@@ -1,5 +1,6 @@
-"""Aerodynamic coefficients, forces and moments from monomial tables (torch, batched).
+"""Aerodynamic coefficients, forces and moments (torch, batched, and the Warp twin).
 
+The monomial model (``aero_monomials.py``) gives
 C_k = sum_t a[t, k] prod_j x_j^e[t, j] + sum_i b[k, i] rate_hat_i,  x = (alpha, beta, d_e, d_a, d_r),
 rate_hat = (p b / 2V, q c / 2V, r b / 2V), with alpha and beta clamped to the table's validity
 range. Lift and drag act in stability axes and are rotated by alpha into the body frame; side force
