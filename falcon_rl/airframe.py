@@ -98,6 +98,8 @@ class Motor:
     time_constant: float  # s, first-order throttle lag
     powerplant: str
     model: str = "momentum"  # MOTOR_MODELS; "thrust_map" reads thrust and torque from Airframe.tables
+    #: thrust-map motors: shift of the thrust line per rad of inflow angle (JSBSim's p-factor), m/rad
+    p_factor: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -554,7 +556,7 @@ def _parse_propulsion(r: _Reader, raw: dict) -> tuple[tuple[Motor, ...], list[Ta
         raise r.fail("propulsion.motors", "needs at least one motor")
     keys = {"name", "position_m", "thrust_axis", "spin", "disk_area_m2", "thrust_coefficient",
             "discharge_speed_mps", "torque_coefficient", "torque_speed_constant_rad_s",
-            "time_constant_s", "powerplant", "model"}
+            "time_constant_s", "powerplant", "model", "p_factor_m_per_rad"}
     motors = []
     for i, m in enumerate(motors_raw):
         where = f"propulsion.motors[{i}]"
@@ -595,8 +597,18 @@ def _parse_propulsion(r: _Reader, raw: dict) -> tuple[tuple[Motor, ...], list[Ta
             time_constant=r.positive(m, "time_constant_s", where),
             powerplant=plant,
             model=model,
+            p_factor=_p_factor(r, m, where, model),
         ))
     return tuple(motors), map_terms
+
+
+def _p_factor(r: _Reader, motor: dict, where: str, model: str) -> float:
+    """A thrust-map motor's p-factor (m of thrust-line shift per rad of inflow angle, >= 0)."""
+    value = r.get(motor, "p_factor_m_per_rad", where, float, 0.0)
+    if value < 0 or (value and model != "thrust_map"):
+        raise r.fail(f"{where}.p_factor_m_per_rad",
+                     f"must be >= 0, and only on a thrust_map motor; got {value}")
+    return value
 
 
 def _parse_actuators(r: _Reader, raw: dict) -> dict[str, Actuator]:

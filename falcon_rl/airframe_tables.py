@@ -19,6 +19,11 @@ JSON (``aero.tables``, and ``propulsion.thrust_map`` for the motors whose ``mode
 ``values`` nests one list level per axis (row-major, first axis outermost; a number when there are no
 axes); breakpoints strictly increase. For propulsion terms the variable ``airspeed`` is the motor's axial
 inflow speed and ``throttle`` its own throttle.
+
+``alpha_dot`` (alpha-dot c / 2V, non-dimensional like q) is not a state: the physics solves it from the
+accelerations the forces set (``physics/alpha_dot.py``), in closed form because the force is linear in
+it. So it may only be an aero term's multiplier, with exponent 1 (never an axis, a higher power or a
+thrust-map variable); the parser refuses anything else.
 """
 
 from __future__ import annotations
@@ -41,14 +46,17 @@ class FieldReader(Protocol):
 
     def text(self, data: dict, key: str, where: str, default: Any = ..., file_name: bool = False) -> str: ...
 
-#: Variables a table term may read, in the order of the physics' variable vector [N, 13]. Angles and
-#: deflections in rad, rates non-dimensional (p b/2V, q c/2V, r b/2V), airspeed m/s, density kg/m^3,
-#: h_over_b = height of the wing reference point over span, throttle in [0, 1].
+#: Variables a table term may read, in the order of the physics' variable vector [N, 14]. Angles and
+#: deflections in rad, rates non-dimensional (p b/2V, q c/2V, r b/2V, alpha_dot c/2V), airspeed m/s,
+#: density kg/m^3, h_over_b = height of the wing reference point over span, throttle in [0, 1].
 TABLE_VARIABLES: tuple[str, ...] = ("alpha", "beta", "elevator", "aileron", "rudder", "p", "q", "r", "mach",
-                                    "airspeed", "h_over_b", "throttle", "density")
+                                    "airspeed", "h_over_b", "throttle", "density", "alpha_dot")
+#: The variable the physics solves rather than reads (a multiplier of exponent 1 of aero terms only).
+ALPHA_DOT_VARIABLE = "alpha_dot"
 #: Outputs of table terms: the six aero coefficients, then per thrust-map motor its thrust (N, along the
-#: thrust axis) and its reaction torque on the airframe about the thrust axis (N m, signed).
-TABLE_OUTPUTS: tuple[str, ...] = ("CL", "CD", "CY", "Cl", "Cm", "Cn", "thrust", "torque")
+#: thrust axis), its reaction torque on the airframe about the thrust axis (N m, signed) and its
+#: propeller's angular momentum about the thrust axis (N m s, signed; the gyroscopic moment h a x omega).
+TABLE_OUTPUTS: tuple[str, ...] = ("CL", "CD", "CY", "Cl", "Cm", "Cn", "thrust", "torque", "angular_momentum")
 AERO_OUTPUTS = 6
 #: Output code of the padding term (an airframe without tables still binds one-element arrays).
 NO_OUTPUT = len(TABLE_OUTPUTS)
@@ -70,7 +78,7 @@ class TableTerm:
     name: str
     output: int  # index into TABLE_OUTPUTS
     gain: float
-    multiply: tuple[int, ...]  # [13] exponents, TABLE_VARIABLES order
+    multiply: tuple[int, ...]  # [14] exponents, TABLE_VARIABLES order
     variables: tuple[int, ...]  # axis variables, 0..3 of them
     breakpoints: tuple[np.ndarray, ...]  # per axis, strictly increasing, SI
     values: np.ndarray  # shape = breakpoint counts (a 0-d array without axes)
@@ -139,7 +147,7 @@ class TableSet:
         return np.array([t.gain for t in self.terms] or [0.0])
 
     def exponents(self) -> np.ndarray:
-        """[K, 13] int multiplier exponents."""
+        """[K, 14] int multiplier exponents."""
         return np.array([t.multiply for t in self.terms] or [[0] * len(TABLE_VARIABLES)], dtype=np.int64)
 
     def max_breakpoints(self) -> int:
@@ -176,6 +184,12 @@ def parse_term(r: FieldReader, raw: Any, where: str, outputs: tuple[str, ...]) -
             raise r.fail(f"{where}.multiply.{var}",
                          f"exponent must be in [0, {MAX_MULTIPLIER_EXPONENT}], got {e}")
         multiply.append(e)
+    if multiply[TABLE_VARIABLES.index(ALPHA_DOT_VARIABLE)] > 1:
+        raise r.fail(f"{where}.multiply.{ALPHA_DOT_VARIABLE}",
+                     "alpha_dot may only enter linearly (exponent 1): the physics solves it in closed form")
+    if multiply[TABLE_VARIABLES.index(ALPHA_DOT_VARIABLE)] and output not in TABLE_OUTPUTS[:AERO_OUTPUTS]:
+        raise r.fail(f"{where}.multiply.{ALPHA_DOT_VARIABLE}", "alpha_dot is an aero variable, not a "
+                                                             "thrust-map one")
     axes_raw = r.get(raw, "axes", where, list, [])
     if len(axes_raw) > MAX_TABLE_AXES:
         raise r.fail(f"{where}.axes", f"at most {MAX_TABLE_AXES} axes, got {len(axes_raw)}")
@@ -188,6 +202,10 @@ def parse_term(r: FieldReader, raw: Any, where: str, outputs: tuple[str, ...]) -
         var = r.get(axis, "variable", awhere, str)
         if var not in TABLE_VARIABLES:
             raise r.fail(f"{awhere}.variable", f"must be one of {list(TABLE_VARIABLES)}, got {var!r}")
+        if var == ALPHA_DOT_VARIABLE:
+            raise r.fail(f"{awhere}.variable", "alpha_dot may not be a table axis, only a multiplier "
+                                               "(exponent 1): the physics solves it in closed form where "
+                                               "the force is linear in it")
         if TABLE_VARIABLES.index(var) in variables:
             raise r.fail(f"{awhere}.variable", f"{var!r} is already an axis of this term")
         bp = _numbers(r, axis, "breakpoints", awhere)

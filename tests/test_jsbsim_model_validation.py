@@ -42,18 +42,21 @@ def test_cli_refuses_an_unknown_jsbsim_model(tmp_path, capsys):
 @pytest.mark.slow
 @pytest.mark.parametrize("model", ["c172p", "pa28", "c182"])
 def test_imported_aircraft_track_jsbsim_over_20_s(model, tmp_path):
-    """20 s doublets at 50 m/s, 10 and 300 m: pitch rate (elevator), roll rate and bank (aileron) at
-    r >= 0.99 (measured 0.993-0.9999; the issue's 0.999 on pitch rate is missed through the alpha-dot
-    approximation, see docs/jsbsim_import.md)."""
+    """20 s doublets at 50 m/s, 10 and 300 m. Elevator: altitude, airspeed and pitch rate at r >= 0.998
+    (measured 0.9986-0.9999: the issue's 0.999 is met by the c172p, missed by the pa28's pitch rate and
+    the c182's altitude and airspeed, see docs/jsbsim_import.md), roll rate and bank at r >= 0.99
+    (measured 0.997-0.9998). Aileron: roll rate and bank at r >= 0.999 (measured 0.9996-0.9999)."""
     results, skipped = validate_model(load_airframe(f"jsbsim_{model}"), model, tmp_path, (50.0,),
                                       (10.0, 300.0), ("elevator", "aileron"), duration=20.0)
     assert not skipped
     for r in results:
         m = r.metrics
         if r.case.excitation.startswith("elevator"):
-            assert m["pitch_rate"]["r"] >= 0.99, json.dumps(r.row())
-        else:
+            longitudinal = min(m[c]["r"] for c in ("altitude", "airspeed", "pitch_rate"))
+            assert longitudinal >= 0.998, json.dumps(r.row())
             assert m["roll_rate"]["r"] >= 0.99 and m["phi"]["r"] >= 0.99, json.dumps(r.row())
+        else:
+            assert m["roll_rate"]["r"] >= 0.999 and m["phi"]["r"] >= 0.999, json.dumps(r.row())
 
 
 def test_cli_validate_jsbsim_model_json(capsys, tmp_path):

@@ -201,8 +201,8 @@ def test_one_extra_row_is_all_it_takes():
     assert type(p.to(dtype=torch.float64)) is ExtendedParams
     if not warp_available():
         return
-    assert list(ExtendedWarpParams.vars)[-5:] == ["drag_area", "drag_area_total", "aero_exponent_codes",
-                                                  "num_terms", "num_motors"]
+    assert list(ExtendedWarpParams.vars)[-6:] == ["drag_area", "drag_area_total", "aero_exponent_codes",
+                                                  "num_terms", "num_motors", "num_alpha_dot_terms"]
     init_warp()
     bound = bind_warp(ExtendedWarpParams, EXTENDED_TABLE, WARP_EXTRAS, p, WARP_TYPES)
     assert _warp_shape(bound.drag_area) == (N, 1)

@@ -18,6 +18,7 @@ import torch
 
 from falcon_rl import Simulator, load_airframe
 from falcon_rl.airframe import AERO_VARIABLES, AirframeError, parse_airframe
+from falcon_rl.airframe_tables import TABLE_VARIABLES
 from falcon_rl.physics import state as S
 from falcon_rl.physics._warp import init_warp, wp
 from falcon_rl.physics.aero import aero_forces, table_variables
@@ -173,7 +174,7 @@ def test_tables_reproduce_the_linear_monomial_model():
 def test_table_values_interpolate_multilinearly_and_clamp_at_the_edges():
     af = parse(tabulated_document())
     p = build_params(af, 4, dtype=torch.float64, ground_effect="tables")
-    x = torch.zeros(4, 13, dtype=torch.float64)
+    x = torch.zeros(4, len(TABLE_VARIABLES), dtype=torch.float64)
     x[:, 0] = torch.tensor([0.1, -0.5, 0.9, 0.25], dtype=torch.float64)  # alpha: in cells, below, above
     x[:, 10] = torch.tensor([0.15, 0.0, 5.0, 0.35], dtype=torch.float64)  # h/b
     # All other terms read alpha only linearly (or not at all) at zero deflections, rates and throttle.
@@ -207,7 +208,7 @@ def test_ground_effect_tables_read_h_over_b_only_in_mode_tables():
 def test_monomial_airframes_carry_one_padding_term_and_no_output():
     p = build_params(load_airframe("navion"), 2)
     assert p.table_index.shape[0] == 1 and not has_terms(p, 0, 8)
-    assert torch.count_nonzero(table_outputs(torch.randn(2, 13), p)) == 0
+    assert torch.count_nonzero(table_outputs(torch.randn(2, len(TABLE_VARIABLES)), p)) == 0
 
 
 def test_thrust_map_reads_the_table_at_the_axial_inflow():

@@ -1,5 +1,6 @@
-"""Aerodynamic coefficients, forces and moments from monomial tables (torch, batched).
+"""Aerodynamic coefficients, forces and moments (torch, batched, and the Warp twin).
 
+The monomial model (``aero_monomials.py``) gives
 C_k = sum_t a[t, k] prod_j x_j^e[t, j] + sum_i b[k, i] rate_hat_i,  x = (alpha, beta, d_e, d_a, d_r),
 rate_hat = (p b / 2V, q c / 2V, r b / 2V), with alpha and beta clamped to the table's validity
 range. Lift and drag act in stability axes and are rotated by alpha into the body frame; side force
@@ -19,25 +20,31 @@ Ground effect (see ``ground_effect.py``) scales C_L and the induced drag (Philli
 "induced" and "paper"), or, in mode "tables", the tables read the true h/b (JSBSim's kCLge/kCDge
 come across as table data); in every other mode the tables see h/b = H_OVER_B_FREE_AIR. The model switch
 ``no_rate_damping`` (``switches.ModelSwitches(rate_damping=False)``) sets rate_hat = 0 per env, so the
-rate derivatives contribute nothing.
+rate derivatives contribute nothing (nor do the alpha-dot terms).
+
+Table terms that multiply alpha_dot (alpha-dot c / 2V, ``tables.split_alpha_dot``) are not added here:
+the force and moment per unit alpha_dot come out beside the rest (``AeroOutput.alpha_dot_*``, None for
+an airframe without such terms), and ``alpha_dot.py`` solves alpha-dot from the accelerations and adds
+them. They are not scaled by ground-effect modes "induced" and "paper" (those scale the wing's lift and
+induced drag; the alpha-dot terms are the tail's downwash lag), so the force stays linear in alpha-dot.
 """
 
 from __future__ import annotations
 
-import weakref
 from dataclasses import dataclass
 
 import torch
 
-from ..airframe import MAX_EXPONENT
 from ._warp import vector_type, warp_func, warp_struct, wp
+from .aero_monomials import aero_coefficients_oge, aero_coefficients_oge_wp
 from .atmosphere import RHO_SEA_LEVEL
 from .constants import GAMMA, R_AIR, T0
 from .ground_effect import GE_INDUCED, GE_PAPER, GE_TABLES, influence_ratios, phillips_hunsaker_wp
-from .params import EXPONENT_BITS, EXPONENT_MASK, ModelParams, WarpParams
+from .params import ModelParams, WarpParams
 from .tables import (
     AIRSPEED,
     ALPHA,
+    ALPHA_DOT,
     BETA,
     DENSITY,
     ELEVATOR,
@@ -46,7 +53,10 @@ from .tables import (
     P_HAT,
     THROTTLE,
     TableVars,
+    has_alpha_dot_terms,
     has_terms,
+    split_alpha_dot,
+    table_output_split_wp,
     table_output_wp,
     table_outputs,
 )
@@ -67,64 +77,15 @@ class AeroOutput:
     induced_drag_coefficient: torch.Tensor  # [N]
     kappa_lift: torch.Tensor  # [N]
     kappa_drag: torch.Tensor  # [N]
-
-
-def monomial_plan(exponents: torch.Tensor) -> tuple[int, torch.Tensor]:
-    """(max power P, flat gather index [T * V] into the [N, V * (P + 1)] power table), cached per
-    exponent tensor (the table is shared and fixed, so this avoids a host sync per call)."""
-    key = id(exponents)
-    cached = _PLANS.get(key)
-    if cached is not None and cached[0]() is exponents and (
-            torch.compiler.is_compiling() or cached[1] == exponents._version):
-        # Under torch.compile the version check would break the graph; the compiled engine warms
-        # this cache eagerly first and the exponent table is fixed for a simulator's life.
-        return cached[2], cached[3]
-    max_power = int(exponents.max()) if exponents.numel() else 0
-    var_index = torch.arange(exponents.shape[-1], device=exponents.device)
-    flat = (var_index.unsqueeze(0) * (max_power + 1) + exponents).reshape(-1)
-    ref = weakref.ref(exponents, lambda _ref, key=key: _PLANS.pop(key, None))
-    _PLANS[key] = (ref, exponents._version, max_power, flat)
-    return max_power, flat
-
-
-#: id(exponents) -> (weak reference, tensor version, max power, flat index)
-_PLANS: dict[int, tuple[weakref.ref, int, int, torch.Tensor]] = {}
-
-
-def monomials(x: torch.Tensor, exponents: torch.Tensor) -> torch.Tensor:
-    """Evaluate prod_j x_j^e[t, j]. x: [N, V], exponents: [T, V] long -> [N, T].
-
-    Powers are built by repeated multiplication (not ``pow``) so gradients stay finite at x = 0,
-    then gathered with one ``index_select`` from the [N, V * (P + 1)] table of powers.
-    """
-    max_power, flat = monomial_plan(exponents)
-    powers = [torch.ones_like(x)]
-    for _ in range(max_power):
-        powers.append(powers[-1] * x)
-    table = torch.stack(powers, dim=-1).reshape(x.shape[0], -1)  # [N, V * (P + 1)]
-    picked = table.index_select(1, flat).reshape(x.shape[0], exponents.shape[0], x.shape[-1])
-    return picked.prod(dim=-1)
+    # per unit alpha_dot c/2V (None: no alpha-dot terms); alpha_dot.py adds alpha_dot times them
+    alpha_dot_force: torch.Tensor | None = None  # [N, 3] N
+    alpha_dot_moment: torch.Tensor | None = None  # [N, 3] N m
+    alpha_dot_coefficients: torch.Tensor | None = None  # [N, 6]
 
 
 def has_aero_tables(p: ModelParams) -> bool:
     """Whether ``p`` has any aero table term."""
     return has_terms(p, 0, 6)
-
-
-def aero_coefficients_oge(
-    alpha: torch.Tensor, beta: torch.Tensor, surfaces: torch.Tensor, rates_hat: torch.Tensor,
-    p: ModelParams,
-) -> torch.Tensor:
-    """Out-of-ground-effect coefficients [N, 6] from alpha, beta [N], surfaces [N, 3] rad,
-    non-dimensional rates [N, 3]."""
-    a = torch.minimum(torch.maximum(alpha, p.alpha_range[:, 0]), p.alpha_range[:, 1])
-    b = torch.minimum(torch.maximum(beta, p.beta_range[:, 0]), p.beta_range[:, 1])
-    x = torch.cat([a.unsqueeze(-1), b.unsqueeze(-1), surfaces], dim=-1)  # [N, 5]
-    mono = monomials(x, p.aero_exponents)  # [N, T]
-    # A broadcast product and sum, which Inductor fuses: a bmm here ran the compiled step on an H100
-    # at 50 M env-steps/s (1 M envs) against 82 M, though it is ~20 % faster eager on the CPU.
-    coeffs = (mono.unsqueeze(-1) * p.aero_coefficients).sum(dim=1)
-    return coeffs + (p.aero_rates * rates_hat.unsqueeze(1)).sum(dim=-1)
 
 
 def mach_number(airspeed: torch.Tensor, density: torch.Tensor) -> torch.Tensor:
@@ -134,11 +95,13 @@ def mach_number(airspeed: torch.Tensor, density: torch.Tensor) -> torch.Tensor:
 
 def table_variables(alpha: torch.Tensor, beta: torch.Tensor, surfaces: torch.Tensor, rates_hat: torch.Tensor,
                     airspeed: torch.Tensor, density: torch.Tensor, h_over_b: torch.Tensor,
-                    throttle: torch.Tensor) -> torch.Tensor:
-    """The variable vector [N, 13] of the table terms (``airframe_tables.TABLE_VARIABLES``) from [N]
-    alpha, beta (rad), airspeed (m/s), density (kg/m^3), h/b, throttle and [N, 3] surfaces, rates_hat."""
+                    throttle: torch.Tensor, alpha_dot_hat: torch.Tensor | None = None) -> torch.Tensor:
+    """The variable vector [N, 14] of the table terms (``airframe_tables.TABLE_VARIABLES``) from [N]
+    alpha, beta (rad), airspeed (m/s), density (kg/m^3), h/b, throttle, alpha_dot c/2V (None: 0) and
+    [N, 3] surfaces, rates_hat."""
+    alpha_dot_hat = torch.zeros_like(alpha) if alpha_dot_hat is None else alpha_dot_hat
     columns = [alpha, beta, *surfaces.unbind(-1), *rates_hat.unbind(-1), mach_number(airspeed, density),
-               airspeed, h_over_b, throttle.clamp(0.0, 1.0), density]
+               airspeed, h_over_b, throttle.clamp(0.0, 1.0), density, alpha_dot_hat]
     return torch.stack(columns, dim=-1)
 
 
@@ -193,18 +156,36 @@ def aero_forces(
     rates_hat = omega_air * lengths * half_over_v[:, None]
     rates_hat = rates_hat.masked_fill((p.no_rate_damping != 0).unsqueeze(-1), 0.0)
     coeffs = aero_coefficients_oge(alpha, beta, surfaces, rates_hat, p)
+    per_alpha_dot = None
     if has_aero_tables(p):
         throttle = torch.zeros_like(airspeed) if throttle is None else throttle
         x = table_variables(alpha, beta, surfaces, rates_hat, airspeed, density, tables_h_over_b(h_over_b, p),
                             throttle)
-        coeffs = coeffs + table_outputs(x, p)[:, :6]
+        if has_alpha_dot_terms(p):
+            steady, per_unit = split_alpha_dot(x, p)
+            coeffs = coeffs + steady[:, :6]
+            per_alpha_dot = per_unit[:, :6].masked_fill((p.no_rate_damping != 0).unsqueeze(-1), 0.0)
+        else:
+            coeffs = coeffs + table_outputs(x, p)[:, :6]
     coeffs, cdi, kappa_l, kappa_d = apply_ground_effect(coeffs, h_over_b, p)
     qs = 0.5 * density * airspeed**2 * p.wing_area
+    force, moment = coefficient_loads(coeffs, alpha, qs, lengths, p)
+    out = AeroOutput(force, moment, coeffs, cdi, kappa_l, kappa_d)
+    if per_alpha_dot is not None:
+        out.alpha_dot_force, out.alpha_dot_moment = coefficient_loads(per_alpha_dot, alpha, qs, lengths, p)
+        out.alpha_dot_coefficients = per_alpha_dot
+    return out
+
+
+def coefficient_loads(coeffs: torch.Tensor, alpha: torch.Tensor, qs: torch.Tensor, lengths: torch.Tensor,
+                      p: ModelParams) -> tuple[torch.Tensor, torch.Tensor]:
+    """(force [N, 3] N, moment about the CG [N, 3] N m) in body axes of the coefficients [N, 6] (lift and
+    drag in stability axes) at alpha [N], qbar S [N] and reference lengths (b, c, b) [N, 3]."""
     cl, cd, cy = coeffs[:, 0], coeffs[:, 1], coeffs[:, 2]
     ca, sa = torch.cos(alpha), torch.sin(alpha)
     force = torch.stack([-cd * ca + cl * sa, cy, -cd * sa - cl * ca], dim=-1) * qs[:, None]
     moment = coeffs[:, 3:] * lengths * qs[:, None] + torch.linalg.cross(p.aero_reference, force, dim=-1)
-    return AeroOutput(force, moment, coeffs, cdi, kappa_l, kappa_d)
+    return force, moment
 
 
 # ---------------------------------------------------------------------------------------- warp twins
@@ -221,46 +202,10 @@ class AeroResultWp:
     induced_drag_coefficient: float
     kappa_lift: float
     kappa_drag: float
-
-
-#: Powers 0..6 of one aero variable (the schema caps monomial exponents at 6).
-PowerVec = vector_type(MAX_EXPONENT + 1)
-
-
-@warp_func
-def powers_wp(x: float) -> PowerVec:
-    """(1, x, x^2, ..., x^6) by products: each monomial then costs five indexed reads, with no
-    data-dependent loop (which measured about 20 % of the whole CPU step)."""
-    x2 = x * x
-    x3 = x2 * x
-    return PowerVec(1.0, x, x2, x3, x2 * x2, x3 * x2, x3 * x3)
-
-
-@warp_func
-def aero_coefficients_oge_wp(alpha: float, beta: float, surfaces: wp.vec3, rates_hat: wp.vec3,
-                             p: WarpParams, i: int) -> Vec6:
-    """Out-of-ground-effect coefficients of env ``i`` (twin of :func:`aero_coefficients_oge`)."""
-    a_range = p.alpha_range[i]
-    b_range = p.beta_range[i]
-    a = wp.min(wp.max(alpha, a_range[0]), a_range[1])
-    b = wp.min(wp.max(beta, b_range[0]), b_range[1])
-    pa = powers_wp(a)
-    pb = powers_wp(b)
-    pe = powers_wp(surfaces[0])
-    pl = powers_wp(surfaces[1])
-    pr = powers_wp(surfaces[2])
-    c = Vec6()
-    for t in range(p.num_terms):
-        code = p.aero_exponent_codes[t]
-        term = (pa[code & EXPONENT_MASK] * pb[(code >> EXPONENT_BITS) & EXPONENT_MASK]
-                * pe[(code >> (2 * EXPONENT_BITS)) & EXPONENT_MASK]
-                * pl[(code >> (3 * EXPONENT_BITS)) & EXPONENT_MASK]
-                * pr[(code >> (4 * EXPONENT_BITS)) & EXPONENT_MASK])
-        c = c + term * p.aero_coefficients[i, t]
-    for k in range(6):
-        c[k] = c[k] + (p.aero_rates[i, k, 0] * rates_hat[0] + p.aero_rates[i, k, 1] * rates_hat[1]
-                       + p.aero_rates[i, k, 2] * rates_hat[2])
-    return c
+    # per unit alpha_dot c/2V (zero unless the airframe has alpha-dot terms)
+    alpha_dot_force: wp.vec3
+    alpha_dot_moment: wp.vec3
+    alpha_dot_coefficients: Vec6
 
 
 @warp_func
@@ -302,13 +247,23 @@ def aero_forces_throttle_wp(airspeed: float, alpha: float, beta: float, omega_ai
         rates_hat = wp.vec3(0.0, 0.0, 0.0)
     c = aero_coefficients_oge_wp(alpha, beta, surfaces, rates_hat, p, i)
     mode = p.ground_effect_mode[i]
+    per_alpha_dot = Vec6()
     if p.table_output_start[6] > 0:
         table_hb = H_OVER_B_FREE_AIR
         if mode == GE_TABLES:
             table_hb = h_over_b
         x = table_variables_wp(alpha, beta, surfaces, rates_hat, airspeed, density, table_hb, throttle)
-        for k in range(6):
-            c[k] = c[k] + table_output_wp(x, p, i, k)
+        if p.num_alpha_dot_terms > 0:
+            x[ALPHA_DOT] = 1.0
+            for k in range(6):
+                split = table_output_split_wp(x, p, i, k)
+                c[k] = c[k] + split[0]
+                per_alpha_dot[k] = split[1]
+            if p.no_rate_damping[i] != 0:
+                per_alpha_dot = Vec6()
+        else:
+            for k in range(6):
+                c[k] = c[k] + table_output_wp(x, p, i, k)
     cl_inf = c[0]
     cd_inf = c[1]
     kappa_l = float(1.0)  # noqa: UP018 (a mutable Warp local)
@@ -338,6 +293,12 @@ def aero_forces_throttle_wp(airspeed: float, alpha: float, beta: float, omega_ai
     out.moment_body = wp.vec3(c[3] * span, c[4] * chord, c[5] * span) * qs + wp.cross(p.aero_reference[i],
                                                                                        out.force_body)
     out.coefficients = c
+    if p.num_alpha_dot_terms > 0:
+        d = per_alpha_dot
+        out.alpha_dot_force = wp.vec3(-d[1] * ca + d[0] * sa, d[2], -d[1] * sa - d[0] * ca) * qs
+        out.alpha_dot_moment = wp.vec3(d[3] * span, d[4] * chord, d[5] * span) * qs + wp.cross(
+            p.aero_reference[i], out.alpha_dot_force)
+        out.alpha_dot_coefficients = d
     out.induced_drag_coefficient = cdi_out
     out.kappa_lift = kappa_l
     out.kappa_drag = kappa_d

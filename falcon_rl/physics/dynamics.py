@@ -6,7 +6,9 @@
     w_dot  = J^-1 (M_aero + M_prop - omega x J omega)
 
 The aero model sees the air-relative velocity V_a = v - R^T w_ned - w_gust and the rates
-omega - omega_gust, so wind and turbulence act on alpha, beta and dynamic pressure.
+omega - omega_gust, so wind and turbulence act on alpha, beta and dynamic pressure. An airframe with
+alpha-dot table terms has them solved from v_dot in closed form (``alpha_dot.py``) inside
+:func:`evaluate`, so F_aero already holds them.
 
 Model switches (``switches.ModelSwitches``) act per env inside the components; ideal actuators
 and throttle also need :func:`hold_command` before each step (state set to the command).
@@ -28,6 +30,7 @@ from .actuators import (
     saturate_wp,
 )
 from .aero import aero_forces, aero_forces_throttle_wp
+from .alpha_dot import solve_alpha_dot_hat, solve_alpha_dot_hat_wp, with_alpha_dot, with_alpha_dot_wp
 from .atmosphere import model_density, model_density_wp
 from .derived import MAX_MOTORS, pack_derived
 from .params import ModelParams, Vec6, WarpParams
@@ -110,7 +113,11 @@ def evaluate(x: torch.Tensor, p: ModelParams, air: AirInputs | None = None) -> E
     first_throttle = throttle[:, 0] if throttle.shape[1] else torch.zeros_like(height)
     aero = aero_forces(airspeed, alpha, beta, omega_air, surfaces, density,
                        wing_height / p.span, p, first_throttle)
-    f_prop, m_prop, thrust = propulsion_forces(v_air, throttle, density, p)
+    f_prop, m_prop, thrust = propulsion_forces(v_air, throttle, density, p, omega)
+    if aero.alpha_dot_force is not None:
+        steady = translational_acceleration(aero.force_body + f_prop, rot, omega, vel, p)
+        per_unit = aero.alpha_dot_force / p.mass[:, None]
+        aero = with_alpha_dot(aero, solve_alpha_dot_hat(v_air, steady, per_unit, airspeed, p))
     return Evaluation(
         force_body=aero.force_body + f_prop,
         moment_body=aero.moment_body + m_prop,
@@ -132,6 +139,15 @@ def evaluate(x: torch.Tensor, p: ModelParams, air: AirInputs | None = None) -> E
     )
 
 
+def translational_acceleration(force_body: torch.Tensor, rotation: torch.Tensor, omega: torch.Tensor,
+                               velocity: torch.Tensor, p: ModelParams) -> torch.Tensor:
+    """v_dot [N, 3] m/s^2 (body axes) = F / m + R^T g - omega x v from the non-gravity force [N, 3] N, the
+    body -> NED rotation [N, 3, 3], body rates [N, 3] rad/s and body velocity [N, 3] m/s."""
+    # 3x3 products as broadcast multiply + sum: much cheaper than batched matmul for [N, 3, 3].
+    gravity_body = rotation[:, 2, :] * p.gravity[:, None]  # R^T (0, 0, g)
+    return force_body / p.mass[:, None] + gravity_body - torch.linalg.cross(omega, velocity, dim=-1)
+
+
 def derivative(x: torch.Tensor, command: torch.Tensor, p: ModelParams,
                air: AirInputs | None = None) -> torch.Tensor:
     """State derivative [N, S] at state x [N, S] under normalised command [N, 4]."""
@@ -139,9 +155,7 @@ def derivative(x: torch.Tensor, command: torch.Tensor, p: ModelParams,
     q = x[:, S.QUATERNION]
     vel = x[:, S.VELOCITY]
     omega = x[:, S.ANGULAR_RATE]
-    # 3x3 products as broadcast multiply + sum: much cheaper than batched matmul for [N, 3, 3].
-    gravity_body = ev.rotation[:, 2, :] * p.gravity[:, None]  # R^T (0, 0, g)
-    v_dot = ev.force_body / p.mass[:, None] + gravity_body - torch.linalg.cross(omega, vel, dim=-1)
+    v_dot = translational_acceleration(ev.force_body, ev.rotation, omega, vel, p)
     j_omega = (p.inertia * omega.unsqueeze(1)).sum(dim=-1)
     torque = ev.moment_body - torch.linalg.cross(omega, j_omega, dim=-1)
     w_dot = (p.inertia_inv * torque.unsqueeze(1)).sum(dim=-1)
@@ -210,6 +224,14 @@ def state_vec3(x: StateVec, start: int) -> wp.vec3:
     return wp.vec3(x[start], x[start + 1], x[start + 2])
 
 
+@warp_func
+def translational_acceleration_wp(force_body: wp.vec3, rotation: wp.mat33, omega: wp.vec3, velocity: wp.vec3,
+                                  p: WarpParams, i: int) -> wp.vec3:
+    """v_dot of env i (twin of :func:`translational_acceleration`)."""
+    gravity_body = wp.transpose(rotation) * wp.vec3(0.0, 0.0, p.gravity[i])
+    return force_body / p.mass[i] + gravity_body - wp.cross(omega, velocity)
+
+
 @warp_struct
 class EvaluationWp:
     """Per-env twin of the parts of :class:`Evaluation` that the derivative and the state need."""
@@ -255,6 +277,12 @@ def evaluate_wp(x: StateVec, wind_ned: wp.vec3, gust_velocity_body: wp.vec3, gus
     aero = aero_forces_throttle_wp(air[0], air[1], air[2], omega_air, surfaces, density,
                                    wing_height / p.span[i], x[S.THROTTLE_START], p, i)
     prop = propulsion_forces_wp(v_air, x, density, p, i)
+    if p.num_alpha_dot_terms > 0:
+        omega = state_vec3(x, ANGULAR_RATE_START)
+        velocity = state_vec3(x, VELOCITY_START)
+        steady = translational_acceleration_wp(aero.force_body + prop.force_body, rot, omega, velocity, p, i)
+        per_unit = aero.alpha_dot_force / p.mass[i]
+        aero = with_alpha_dot_wp(aero, solve_alpha_dot_hat_wp(v_air, steady, per_unit, air[0], p, i))
     ev = EvaluationWp()
     ev.rotation = rot
     ev.airspeed = air[0]
@@ -286,8 +314,7 @@ def derivative_wp(x: StateVec, command: wp.vec4, wind_ned: wp.vec3, gust_velocit
                 x[QUATERNION_START + 3])
     vel = state_vec3(x, VELOCITY_START)
     omega = state_vec3(x, ANGULAR_RATE_START)
-    gravity_body = wp.transpose(rot) * wp.vec3(0.0, 0.0, p.gravity[i])
-    v_dot = ev.force_body / p.mass[i] + gravity_body - wp.cross(omega, vel)
+    v_dot = translational_acceleration_wp(ev.force_body, rot, omega, vel, p, i)
     w_dot = p.inertia_inv[i] * (ev.moment_body - wp.cross(omega, p.inertia[i] * omega))
     p_dot = rot * vel
     q_dot = quaternion_derivative_wp(q, omega)

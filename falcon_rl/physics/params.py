@@ -19,7 +19,7 @@ from typing import Any
 import torch
 
 from ..airframe import MOTOR_MODELS, SURFACES, Actuator, Airframe
-from ..airframe_tables import INDEX_COLUMNS, NO_OUTPUT
+from ..airframe_tables import ALPHA_DOT_VARIABLE, INDEX_COLUMNS, NO_OUTPUT, TABLE_VARIABLES
 from ..constants import G0
 from . import parameter_table
 from ._warp import vector_type, wp
@@ -49,7 +49,7 @@ WARP_TYPES: dict[str, Any] = {"Vec6": Vec6, "WingConstants": WingConstants}
 
 def pack_exponents(exponents: torch.Tensor) -> torch.Tensor:
     """[T] int32 codes of the [T, V] exponent table, EXPONENT_BITS bits per variable (variable j
-    in bits 3j..3j+2). The warp aero table (``aero.aero_coefficients_oge_wp``) reads one code per
+    in bits 3j..3j+2). The warp aero table (``aero_monomials.aero_coefficients_oge_wp``) reads one code per
     monomial and unpacks it with shifts and masks into indices that are provably in range; five
     int64 reads with sign fix-ups cost three times as many instructions (the table was a third of
     the CPU step)."""
@@ -121,6 +121,8 @@ PARAMETER_TABLE: tuple[ParamRow, ...] = (
              unit="N m s^2", doc="k_tp"),
     ParamRow("torque_speed_constant", "[N, M]", _motors("torque_speed_constant"), randomizable=True,
              unit="rad/s", doc="k_omega, at full throttle"),
+    ParamRow("motor_p_factor", "[N, M]", _motors("p_factor"), randomizable=True, unit="m/rad",
+             doc="thrust-map motors: thrust-line shift per rad of inflow angle (p-factor)"),
     ParamRow("throttle_time_constant", "[N, M]", _motors("time_constant"), randomizable=True, unit="s",
              doc="first-order throttle lag"),
     ParamRow("actuator_second_order", "[N, 3]", _surfaces(lambda ac: ac.order == 2), dtype="bool",
@@ -157,7 +159,7 @@ PARAMETER_TABLE: tuple[ParamRow, ...] = (
              doc="every table's values, row-major, concatenated"),
     ParamRow("table_grid", "[K, 3, L]", lambda af, _: af.tables.grid(), per_env=False, warp=None,
              doc="breakpoints per term and axis, padded (the torch lookup)"),
-    ParamRow("table_exponents", "[K, 13]", lambda af, _: af.tables.exponents(), dtype="int64",
+    ParamRow("table_exponents", "[K, 14]", lambda af, _: af.tables.exponents(), dtype="int64",
              per_env=False, warp=None, doc="table-term multiplier exponents, columns TABLE_VARIABLES"),
 )
 
@@ -167,6 +169,9 @@ WARP_EXTRAS: tuple[WarpExtra, ...] = (
               doc="[T] pack_exponents(aero_exponents)"),
     WarpExtra("num_terms", "int32", 0, lambda p: int(p.aero_exponents.shape[0]), doc="T"),
     WarpExtra("num_motors", "int32", 0, lambda p: int(p.motor_spin.shape[1]), doc="M"),
+    WarpExtra("num_alpha_dot_terms", "int32", 0, lambda p: int(
+        (p.table_exponents[:, TABLE_VARIABLES.index(ALPHA_DOT_VARIABLE)] > 0).sum()),
+        doc="table terms that multiply alpha_dot (0: the alpha-dot solve is skipped)"),
 )
 
 #: Rows domain randomisation may overwrite (``ModelParams.assign(..., randomizable_only=True)``).

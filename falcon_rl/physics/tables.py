@@ -2,13 +2,18 @@
 
     out[o] = sum over the terms k of output o of  gain[k] prod_j x_j^e[k, j] T_k(x_a, x_b, x_c)
 
-x [N, 13] holds the variables of ``airframe_tables.TABLE_VARIABLES``. Each axis clamps its variable to
+x [N, 14] holds the variables of ``airframe_tables.TABLE_VARIABLES``. Each axis clamps its variable to
 its first and last breakpoint and interpolates linearly between breakpoints, so a term is exact at the
 nodes and multilinear in each cell. The terms live in shared, flat arrays (``ModelParams.table_*``: the
 packed index [K, 12], breakpoints [B], values [V]) with a per-env gain [N, K]; terms are sorted by
-output and ``table_output_start`` [9] gives each output's range. The aero model sums outputs 0..5 (the
-coefficients, ``aero.py``), the propulsion model outputs 6 and 7 (thrust N and torque N m of each
-thrust-map motor, ``propulsion.py``). Every airframe uses the same code: no recompile per aircraft.
+output and ``table_output_start`` [NO_OUTPUT + 1] gives each output's range. The aero model sums
+outputs 0..5 (the coefficients, ``aero.py``), the propulsion model outputs 6, 7 and 8 (thrust N, torque
+N m and angular momentum N m s of each thrust-map motor, ``propulsion.py``). Every airframe uses the
+same code: no recompile per aircraft.
+
+Terms that multiply ``alpha_dot`` (exponent 1, never an axis: ``airframe_tables`` refuses the rest) are
+summed apart by :func:`split_alpha_dot` / :func:`table_output_split_wp`, evaluated at alpha_dot = 1: each
+output is then out_0 + alpha_dot * out_1 exactly, which ``alpha_dot.py`` solves in closed form.
 """
 
 from __future__ import annotations
@@ -18,6 +23,7 @@ import weakref
 import torch
 
 from ..airframe_tables import (
+    ALPHA_DOT_VARIABLE,
     MAX_MULTIPLIER_EXPONENT,
     MAX_TABLE_AXES,
     MULTIPLIER_BITS,
@@ -32,8 +38,11 @@ NUM_VARIABLES = len(TABLE_VARIABLES)
 ALPHA, BETA, ELEVATOR, P_HAT, MACH, AIRSPEED, H_OVER_B, THROTTLE, DENSITY = (
     TABLE_VARIABLES.index(name) for name in ("alpha", "beta", "elevator", "p", "mach", "airspeed", "h_over_b",
                                              "throttle", "density"))
+ALPHA_DOT = TABLE_VARIABLES.index(ALPHA_DOT_VARIABLE)
+#: Bit shift of alpha_dot's exponent in a packed multiplier code.
+ALPHA_DOT_SHIFT = MULTIPLIER_BITS * ALPHA_DOT
 #: Output codes of the propulsion terms.
-THRUST_OUTPUT, TORQUE_OUTPUT = 6, 7
+THRUST_OUTPUT, TORQUE_OUTPUT, ANGULAR_MOMENTUM_OUTPUT = 6, 7, 8
 #: Corners of a 3-D cell: bit a of c selects the upper breakpoint of axis a.
 _CORNERS = torch.tensor([[(c >> a) & 1 for a in range(MAX_TABLE_AXES)] for c in range(8)])
 
@@ -56,10 +65,26 @@ def has_terms(p: ModelParams, first: int, stop: int | None = None) -> bool:
 _STARTS: dict[int, tuple[weakref.ref, list[int]]] = {}
 
 
+def has_alpha_dot_terms(p: ModelParams) -> bool:
+    """Whether any table term of ``p`` multiplies alpha_dot (read once per ``table_exponents`` tensor,
+    shared and fixed, and cached: airframes without such terms skip the alpha-dot solve for free)."""
+    exponents = p.table_exponents
+    key = id(exponents)
+    cached = _ALPHA_DOT.get(key)
+    if cached is None or cached[0]() is not exponents:
+        ref = weakref.ref(exponents, lambda _ref, key=key: _ALPHA_DOT.pop(key, None))
+        cached = _ALPHA_DOT[key] = (ref, bool((exponents[:, ALPHA_DOT] > 0).any()))
+    return cached[1]
+
+
+#: id(table_exponents) -> (weak reference, whether a term multiplies alpha_dot)
+_ALPHA_DOT: dict[int, tuple[weakref.ref, bool]] = {}
+
+
 def multipliers(x: torch.Tensor, exponents: torch.Tensor) -> torch.Tensor:
-    """The monomial multipliers prod_j x_j^(e_kj), shape [N, K], from x [N, 13] and exponents e [K, 13] in
+    """The monomial multipliers prod_j x_j^(e_kj), shape [N, K], from x [N, 14] and exponents e [K, 14] in
     [0, 3] (by products, so that gradients stay finite at x = 0)."""
-    xk = x.unsqueeze(1)  # [N, 1, 13]
+    xk = x.unsqueeze(1)  # [N, 1, 14]
     out = torch.ones(x.shape[0], exponents.shape[0], x.shape[1], dtype=x.dtype, device=x.device)
     for power in range(1, MAX_MULTIPLIER_EXPONENT + 1):
         out = torch.where(exponents >= power, out * xk, out)
@@ -67,8 +92,32 @@ def multipliers(x: torch.Tensor, exponents: torch.Tensor) -> torch.Tensor:
 
 
 def table_outputs(x: torch.Tensor, p: ModelParams, gains: torch.Tensor | None = None) -> torch.Tensor:
-    """Every output [N, NO_OUTPUT] from the variables x [N, 13] (outputs with no term are 0); ``gains``
+    """Every output [N, NO_OUTPUT] from the variables x [N, 14] (outputs with no term are 0); ``gains``
     [N, K] replaces ``p.table_gain`` (rows of x that are not one per env)."""
+    return sum_by_output(table_terms(x, p, gains), p)
+
+
+def sum_by_output(terms: torch.Tensor, p: ModelParams) -> torch.Tensor:
+    """[N, NO_OUTPUT] the per-term values [N, K] summed per output."""
+    onehot = torch.nn.functional.one_hot(p.table_index[:, 0].long(), NO_OUTPUT + 1).to(terms.dtype)
+    return (terms @ onehot)[:, :NO_OUTPUT]
+
+
+def split_alpha_dot(x: torch.Tensor, p: ModelParams) -> tuple[torch.Tensor, torch.Tensor]:
+    """(out_0, out_1), each [N, NO_OUTPUT], with out = out_0 + alpha_dot * out_1 for every alpha_dot:
+    the terms without and with the alpha_dot multiplier, from x [N, 14] (its alpha_dot column unread)."""
+    x = x.clone()
+    x[:, ALPHA_DOT] = 1.0
+    terms = table_terms(x, p)  # [N, K]
+    per_alpha_dot = (p.table_exponents[:, ALPHA_DOT] > 0).unsqueeze(0)  # [1, K]
+    zero = torch.zeros_like(terms)
+    return (sum_by_output(torch.where(per_alpha_dot, zero, terms), p),
+            sum_by_output(torch.where(per_alpha_dot, terms, zero), p))
+
+
+def table_terms(x: torch.Tensor, p: ModelParams, gains: torch.Tensor | None = None) -> torch.Tensor:
+    """Each term's value [N, K], gain * multiplier * table, from the variables x [N, 14]; ``gains`` as in
+    :func:`table_outputs`."""
     index = p.table_index.long()  # [K, 12]
     grid = p.table_grid  # [K, 3, L]
     variables = index[:, 2:5]  # [K, 3], -1 unused
@@ -89,9 +138,7 @@ def table_outputs(x: torch.Tensor, p: ModelParams, gains: torch.Tensor | None = 
         (cell.unsqueeze(2) + corners) * strides.unsqueeze(0).unsqueeze(2)).sum(-1)  # [N, K, 8]
     flat = flat.clamp(0, p.table_values.shape[0] - 1)
     table = (weight * p.table_values[flat]).sum(-1)  # [N, K]
-    terms = (p.table_gain if gains is None else gains) * multipliers(x, p.table_exponents) * table  # [N, K]
-    onehot = torch.nn.functional.one_hot(index[:, 0], NO_OUTPUT + 1).to(terms.dtype)  # [K, 9]
-    return (terms @ onehot)[:, :NO_OUTPUT]
+    return (p.table_gain if gains is None else gains) * multipliers(x, p.table_exponents) * table  # [N, K]
 
 
 # ---------------------------------------------------------------------------------------- warp twins
@@ -155,3 +202,18 @@ def table_output_wp(x: TableVars, p: WarpParams, i: int, output: int) -> float:
     for k in range(p.table_output_start[output], p.table_output_start[output + 1]):
         total = total + table_term_wp(x, p, i, k)
     return total
+
+
+@warp_func
+def table_output_split_wp(x: TableVars, p: WarpParams, i: int, output: int) -> wp.vec2:
+    """(out_0, out_1) of ``output`` for env i: the sums of its terms without and with the alpha_dot
+    multiplier, ``x`` holding alpha_dot = 1 (twin of one column of :func:`split_alpha_dot`)."""
+    steady = float(0.0)  # noqa: UP018 (a mutable Warp local)
+    per_alpha_dot = float(0.0)  # noqa: UP018 (a mutable Warp local)
+    for k in range(p.table_output_start[output], p.table_output_start[output + 1]):
+        value = table_term_wp(x, p, i, k)
+        if (p.table_index[k, 1] >> ALPHA_DOT_SHIFT) & 3 != 0:
+            per_alpha_dot = per_alpha_dot + value
+        else:
+            steady = steady + value
+    return wp.vec2(steady, per_alpha_dot)

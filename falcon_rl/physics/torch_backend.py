@@ -17,7 +17,7 @@ from typing import Any
 import torch
 
 from . import state as S
-from .aero import monomial_plan
+from .aero_monomials import monomial_plan
 from .derived import DERIVED_WIDTH
 from .dynamics import AirInputs, derivative, derived_columns, hold_command, project
 from .engine import Engine, EngineSetup

@@ -1,8 +1,11 @@
-"""Steady, wings-level trim: alpha, beta, elevator, aileron, rudder and throttle that null all
+"""Steady level trim: alpha, beta (or bank), elevator, aileron, rudder and throttle that null all
 body accelerations (forces and moments) at a given airspeed and height, ground effect on or off.
 
 Solved by damped Newton iterations in float64 with autograd Jacobians, batched over conditions.
-Level flight: pitch = alpha, roll = 0, body rates 0, still air.
+Level flight (flight path horizontal), body rates 0, still air. Lateral convention ``lateral``:
+"wings_level" (bank 0, the side force balanced by sideslip; pitch = alpha) or "zero_sideslip" (beta 0,
+the side force balanced by a bank phi, pitch theta = atan(cos phi tan alpha): JSBSim's full trim, where an
+asymmetric moment such as a propeller's p-factor leaves a small bank).
 """
 
 from __future__ import annotations
@@ -19,8 +22,11 @@ from .dynamics import derivative, evaluate
 from .params import ModelParams, build_params
 from .rotations import euler_to_quaternion
 
-#: Newton unknowns [K, 6]: (alpha, beta, elevator, aileron, rudder, throttle); every motor at one throttle.
+#: Newton unknowns [K, 6]: (alpha, beta or bank, elevator, aileron, rudder, throttle); every motor at one
+#: throttle.
 _ALPHA, _BETA, _SURFACES, _THROTTLE = 0, 1, slice(2, 5), 5
+_BANK = _BETA
+LATERAL_CONVENTIONS = ("wings_level", "zero_sideslip")
 _CL, _CD = AERO_COEFFICIENTS.index("CL"), AERO_COEFFICIENTS.index("CD")
 
 
@@ -47,6 +53,7 @@ class TrimResult:
     drag_coefficient: torch.Tensor  # [K]
     induced_drag_coefficient: torch.Tensor  # [K]
     residual: torch.Tensor  # [K] max |body acceleration| (m/s^2 and rad/s^2)
+    bank: torch.Tensor | None = None  # [K] rad (None: wings level)
 
     def row(self, k: int = 0) -> dict[str, float]:
         """Condition k as plain floats with units in the names (CLI/JSON)."""
@@ -69,17 +76,22 @@ class TrimResult:
 
 
 def level_state(unknowns: torch.Tensor, airspeed: torch.Tensor, height: torch.Tensor,
-                num_motors: int) -> torch.Tensor:
-    """State [K, S] for unknowns [K, 6] = (alpha, beta, d_e, d_a, d_r, throttle)."""
-    alpha, beta = unknowns[:, _ALPHA], unknowns[:, _BETA]
+                num_motors: int, lateral: str = "wings_level") -> torch.Tensor:
+    """State [K, S] for unknowns [K, 6] = (alpha, beta or bank (``lateral``), d_e, d_a, d_r, throttle)."""
+    alpha = unknowns[:, _ALPHA]
     k = unknowns.shape[0]
     zeros = torch.zeros(k, dtype=unknowns.dtype, device=unknowns.device)
+    if lateral == "zero_sideslip":
+        beta, bank = zeros, unknowns[:, _BANK]
+        pitch = torch.atan(torch.cos(bank) * torch.tan(alpha))
+    else:
+        beta, bank, pitch = unknowns[:, _BETA], zeros, alpha
     vel = airspeed[:, None] * torch.stack(
         [torch.cos(alpha) * torch.cos(beta), torch.sin(beta), torch.sin(alpha) * torch.cos(beta)],
         dim=-1)
     return S.StateLayout(num_motors).pack({
         "position_ned": torch.stack([zeros, zeros, -height], dim=-1),
-        "quaternion": euler_to_quaternion(torch.stack([zeros, alpha, zeros], dim=-1)),
+        "quaternion": euler_to_quaternion(torch.stack([bank, pitch, zeros], dim=-1)),
         "velocity_body": vel,
         "angular_rate_body": torch.zeros_like(vel),
         "surface_position": unknowns[:, _SURFACES],
@@ -87,8 +99,9 @@ def level_state(unknowns: torch.Tensor, airspeed: torch.Tensor, height: torch.Te
     })
 
 
-def _residual(unknowns: torch.Tensor, airspeed, height, p: ModelParams, num_motors: int):
-    x = level_state(unknowns, airspeed, height, num_motors)
+def _residual(unknowns: torch.Tensor, airspeed, height, p: ModelParams, num_motors: int,
+              lateral: str = "wings_level"):
+    x = level_state(unknowns, airspeed, height, num_motors, lateral)
     command = normalised_command(unknowns[:, _SURFACES], unknowns[:, _THROTTLE], p)
     xdot = derivative(x, command, p)
     return torch.cat([xdot[:, S.VELOCITY], xdot[:, S.ANGULAR_RATE]], dim=-1)
@@ -101,12 +114,16 @@ def trim_level(
     ground_effect: bool | str = True,
     tol: float = 1e-9,
     max_iter: int = 60,
+    lateral: str = "wings_level",
 ) -> TrimResult:
-    """Trim straight and level flight. ``airspeed`` and ``height`` are scalars or [K] tensors.
+    """Trim straight and level flight. ``airspeed`` and ``height`` are scalars or [K] tensors;
+    ``lateral`` one of LATERAL_CONVENTIONS (see the module doc).
 
     Raises :class:`TrimError` naming the condition when no trim is found within the airframe's
     alpha range, surface limits and throttle range [0, 1].
     """
+    if lateral not in LATERAL_CONVENTIONS:
+        raise ValueError(f"lateral must be one of {list(LATERAL_CONVENTIONS)}, got {lateral!r}")
     v = torch.as_tensor(airspeed, dtype=torch.float64).reshape(-1)
     h = torch.as_tensor(height, dtype=torch.float64).reshape(-1)
     v, h = torch.broadcast_tensors(v, h)
@@ -120,11 +137,11 @@ def trim_level(
     step_limit = torch.tensor([0.05, 0.05, 0.05, 0.05, 0.05, 0.2], dtype=torch.float64)
     residual = None
     for _ in range(max_iter):
-        residual = _residual(z, v, h, p, m)
+        residual = _residual(z, v, h, p, m, lateral)
         if residual.abs().max() < tol:
             break
         jac = torch.autograd.functional.jacobian(
-            lambda zz: _residual(zz, v, h, p, m).sum(0), z)  # [6, K, 6]
+            lambda zz: _residual(zz, v, h, p, m, lateral).sum(0), z)  # [6, K, 6]
         jac = jac.permute(1, 0, 2)  # [K, 6, 6]
         # Pseudo-inverse: stays finite where the alpha clamp of the aero table flattens a column.
         step = (torch.linalg.pinv(jac) @ -residual.unsqueeze(-1)).squeeze(-1)
@@ -133,7 +150,7 @@ def trim_level(
     assert residual is not None
     err = residual.abs().max(dim=-1).values
     _check(airframe, z, v, h, err, tol, p)
-    return _result(z, v, h, p, m, err)
+    return _result(z, v, h, p, m, err, lateral)
 
 
 def _envelope_hint(airframe: Airframe, airspeed: float) -> str:
@@ -174,12 +191,14 @@ def _check(airframe: Airframe, z, v, h, err, tol, p: ModelParams) -> None:
             raise TrimError(f"trim did not converge for {where} (residual {float(err[i]):.3g}){hint}")
 
 
-def _result(z, v, h, p: ModelParams, m: int, err) -> TrimResult:
-    x = level_state(z, v, h, m)
+def _result(z, v, h, p: ModelParams, m: int, err, lateral: str) -> TrimResult:
+    x = level_state(z, v, h, m, lateral)
     ev = evaluate(x, p)
     qs = 0.5 * ev.density * v**2 * p.wing_area
+    banked = lateral == "zero_sideslip"
     return TrimResult(
-        airspeed=v, height=h, alpha=z[:, _ALPHA], beta=z[:, _BETA], surfaces=z[:, _SURFACES],
+        airspeed=v, height=h, alpha=z[:, _ALPHA], beta=ev.beta if banked else z[:, _BETA],
+        bank=z[:, _BANK] if banked else None, surfaces=z[:, _SURFACES],
         throttle=z[:, _THROTTLE], commands=normalised_command(z[:, _SURFACES], z[:, _THROTTLE], p), state=x,
         thrust=ev.thrust.sum(-1), lift=qs * ev.coefficients[:, _CL], drag=qs * ev.coefficients[:, _CD],
         lift_coefficient=ev.coefficients[:, _CL], drag_coefficient=ev.coefficients[:, _CD],

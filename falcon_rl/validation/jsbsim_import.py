@@ -11,7 +11,8 @@ What comes across, in SI and body FRD about the loaded CG:
 - aerodynamics: every axis function as a table term by sampling (``jsbsim_sampling``), with its error,
   or reported by name with the reason it was left out; JSBSim's ground-effect tables become h/b axes,
   read in ground-effect mode "tables";
-- engine and propeller: a steady-state thrust map sampled from JSBSim itself (``jsbsim_engine``).
+- engine and propeller: a steady-state thrust map sampled from JSBSim itself (``jsbsim_engine``), with
+  the propeller's angular momentum (its gyroscopic moment) and p-factor (``jsbsim_propeller``).
 JSBSim's structural frame (x aft, y right, z up, inches) maps to body FRD by r_b = (-(x - x_cg),
 y - y_cg, -(z - z_cg)).
 """
@@ -52,9 +53,9 @@ SURFACE_OUTPUTS = {
     "rudder": "fcs/rudder-pos-rad",
 }
 APPROXIMATIONS = (
-    "alpha-dot terms use q (alpha_dot ~ q, the short-period approximation)",
     "lift and drag act in stability axes (JSBSim: wind axes; differences are second order in beta)",
-    "the propeller's p-factor and gyroscopic moments are not modelled; its roll torque is",
+    "the propeller's gyroscopic moment reads its steady-state speed; its p-factor leaves out the in-plane "
+    "inflow omega x r that the body rotation adds at the propeller",
     "the CG and inertia are those of the initial load (JSBSim moves them as fuel burns)",
     "thrust and the engine properties the aero functions read are steady state (JSBSim's engine speed lags)",
 )

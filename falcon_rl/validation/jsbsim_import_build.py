@@ -27,6 +27,7 @@ from .jsbsim_import import (
     to_body,
     xml_root,
 )
+from .jsbsim_propeller import PROPELLER_RPM, Propeller, read_propeller
 from .jsbsim_sampling import AXES, Flight, PropertyContext, V, convert
 
 ENGINE_SPEEDS = np.array([0.0, 10.0, 20.0, 25.0, 30.0, 35.0, 40.0, 45.0, 50.0, 55.0, 60.0, 65.0, 70.0, 80.0,
@@ -50,6 +51,7 @@ def _flight(limits: dict[str, tuple[float, float]], cruise_guess: float, engine:
         "p": (-0.05, 0.0, 0.05),
         "q": (-0.05, 0.0, 0.05),
         "r": (-0.05, 0.0, 0.05),
+        "alpha_dot": (-0.05, 0.0, 0.05),
         "airspeed": (20.0, cruise_guess, 80.0),
         "h_over_b": (0.0, 100.0, 1.5),
         "throttle": (0.0, 0.6, 1.0),
@@ -63,6 +65,7 @@ def _flight(limits: dict[str, tuple[float, float]], cruise_guess: float, engine:
         "p": np.array([-0.1, 0.0, 0.1]),
         "q": np.array([-0.1, 0.0, 0.1]),
         "r": np.array([-0.1, 0.0, 0.1]),
+        "alpha_dot": np.array([-0.1, 0.0, 0.1]),
         "airspeed": engine.airspeed[engine.airspeed >= 10.0],
         "throttle": engine.throttle,
         "density": engine.density,
@@ -117,15 +120,19 @@ def _engine_properties(el: ET.Element) -> tuple[str, ...]:
     return tuple(sorted(names))
 
 
-def _thrust_map(engine: EngineMap) -> list[dict[str, Any]]:
+def _thrust_map(engine: EngineMap, propeller: Propeller) -> list[dict[str, Any]]:
     axes = [
         {"variable": "airspeed", "breakpoints": engine.airspeed.tolist()},
         {"variable": "throttle", "breakpoints": engine.throttle.tolist()},
         {"variable": "density", "breakpoints": engine.density.round(6).tolist()},
     ]
+    angular_momentum = propeller.gyroscopic_sign * propeller.ixx * engine.properties[PROPELLER_RPM] * (
+        2 * math.pi / 60)
     return [
         {"name": "thrust", "output": "thrust", "axes": axes, "values": engine.thrust.round(3).tolist()},
         {"name": "torque", "output": "torque", "axes": axes, "values": engine.torque.round(3).tolist()},
+        {"name": "angular_momentum", "output": "angular_momentum", "axes": axes,
+         "values": angular_momentum.round(4).tolist()},
     ]
 
 
@@ -205,8 +212,9 @@ def build_document(
         ENGINE_SPEEDS,
         ENGINE_THROTTLES,
         ENGINE_ALTITUDES,
-        (*_engine_properties(el), "propulsion/engine[0]/thrust-lbs"),
+        (*_engine_properties(el), "propulsion/engine[0]/thrust-lbs", PROPELLER_RPM),
     )
+    propeller = read_propeller(root, thruster, path)
     metrics_ft = {"Sw": area / FT**2, "bw": span / FT, "cbarw": chord / FT}
     context = PropertyContext(metrics_ft, HELD, engine, _named_functions(el), set())
     flight = _flight(limits, 50.0, engine)
@@ -256,12 +264,14 @@ def build_document(
                     "position_m": motor_position.round(6).tolist(),
                     "thrust_axis": axis,
                     "spin": 1 if sense >= 0 else -1,
+                    "disk_area_m2": propeller.disk_area,
+                    "p_factor_m_per_rad": propeller.p_factor,
                     "time_constant_s": 0.2,
                     "powerplant": "piston",
                     "model": "thrust_map",
                 }
             ],
-            "thrust_map": _thrust_map(engine),
+            "thrust_map": _thrust_map(engine, propeller),
         },
         "actuators": {
             s: {"order": 1, "time_constant_s": ACTUATOR_TIME_CONSTANT, "limits_rad": list(limits[s])}

@@ -112,9 +112,10 @@ def fly_model(fdm, excitation: str, doublet: ModelDoublet, steps: int, dt: float
 
 def fly_imported(airframe: Airframe, airspeed: float, height: float, increments: np.ndarray, dt: float
                  ) -> Trajectory:
-    """falcon-rl (torch, float64, ground effect "tables", ideal actuators) from its own level trim, the
-    surfaces at trim + ``increments`` [K, 3] rad over each interval."""
-    trim = trim_level(airframe, airspeed, height, ground_effect="tables")
+    """falcon-rl (torch, float64, ground effect "tables", ideal actuators) from its own level trim with
+    zero sideslip (JSBSim's full trim: a propeller's p-factor leaves a small bank), the surfaces at trim +
+    ``increments`` [K, 3] rad over each interval."""
+    trim = trim_level(airframe, airspeed, height, ground_effect="tables", lateral="zero_sideslip")
     sim = Simulator(airframe, num_envs=1, dtype=torch.float64, ground_effect="tables", dt=dt,
                     model={"actuators": "ideal"})
     x0 = trim.state.to(torch.float64)

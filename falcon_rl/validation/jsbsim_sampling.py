@@ -11,6 +11,7 @@ that computes JSBSim's properties from them (:class:`PropertyContext`). Then, nu
 3. while more than three remain, the weakest dependency (if it moves C by under WEAK_FRACTION of the
    strongest one's effect) is held at the reference point (e.g. the cos(alpha) in JSBSim's prop-wash
    dynamic pressure);
+   (alpha_dot must: the physics solves it in closed form only where the force is linear in it);
 4. the rest (at most three) become the table's axes, sampled on the union of the breakpoints of the
    tables indexed by that variable (so a table of tables is exact at its nodes) or on a default grid.
 
@@ -25,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..airframe_tables import MAX_TABLE_AXES, TABLE_OUTPUTS, TABLE_VARIABLES, TableTerm
+from ..airframe_tables import ALPHA_DOT_VARIABLE, MAX_TABLE_AXES, TABLE_OUTPUTS, TABLE_VARIABLES, TableTerm
 from ..constants import FT
 from .jsbsim_functions import Node, UnsupportedFunctionError, multilinear, table_breakpoints
 
@@ -45,7 +46,7 @@ AXES = {
 WEAK_FRACTION = 0.15
 V = {name: k for k, name in enumerate(TABLE_VARIABLES)}
 #: Variables that may become multipliers.
-MULTIPLIER_CANDIDATES = ("elevator", "aileron", "rudder", "p", "q", "r", "alpha", "beta")
+MULTIPLIER_CANDIDATES = ("elevator", "aileron", "rudder", "p", "q", "r", "alpha_dot", "alpha", "beta")
 #: Properties whose table breakpoints give a variable's grid: property -> (variable, scale to SI).
 GRID_SOURCES: dict[str, tuple[str, float]] = {
     "aero/alpha-rad": ("alpha", 1.0),
@@ -87,6 +88,7 @@ class PropertyContext:
         rho = x["density"] / SLUG_FT3
         b, c = self.metrics_ft["bw"], self.metrics_ft["cbarw"]
         p, q, r = x["p"] * 2 * v_fps / b, x["q"] * 2 * v_fps / c, x["r"] * 2 * v_fps / b
+        alpha_dot = x["alpha_dot"] * 2 * v_fps / c
         table: dict[str, np.ndarray | float] = {
             "aero/alpha-rad": x["alpha"],
             "aero/alpha-deg": x["alpha"] / DEG,
@@ -107,7 +109,8 @@ class PropertyContext:
             "velocities/p-rad_sec": p,
             "velocities/q-rad_sec": q,
             "velocities/r-rad_sec": r,
-            "aero/alphadot-rad_sec": q,
+            "aero/alphadot-rad_sec": alpha_dot,
+            "aero/alphadot-deg_sec": alpha_dot / DEG,
             "aero/qbar-psf": 0.5 * rho * v_fps**2,
             "atmosphere/rho-slugs_ft3": rho,
             "velocities/vt-fps": v_fps,
@@ -176,6 +179,10 @@ def convert(
         if np.max(np.abs(doubled - 2 * c0)) < tol and np.max(np.abs(negated + c0)) < tol:
             multiply[V[var]] = 1
     rest = [d for d in deps if not multiply[V[d]]]
+    if ALPHA_DOT_VARIABLE in rest:
+        row["reason"] = "not linear in alpha-dot (the physics solves alpha-dot only where it multiplies)"
+        row["rms_coefficient"] = float(np.sqrt(np.mean(c0**2)))
+        return None, row
     reference = {k: np.asarray(mid) for k, (_, mid, _) in flight.box.items()}
     for var in [k for k in TABLE_VARIABLES if multiply[V[k]]]:
         reference[var] = np.asarray(1.0)
