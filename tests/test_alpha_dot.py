@@ -11,7 +11,13 @@ import copy
 import numpy as np
 import pytest
 import torch
-from test_tabulated_aero import make_sim, parse, re_escape, tabulated_document
+from test_tabulated_aero import (
+    fly_one_second_on_both_backends,
+    make_sim,
+    parse,
+    re_escape,
+    tabulated_document,
+)
 
 from falcon_rl.airframe import AirframeError
 from falcon_rl.physics import state as S
@@ -154,16 +160,8 @@ def assert_warp_derivative_matches_torch(sim, x: torch.Tensor, command: torch.Te
 
 def test_one_second_torch_and_warp_agree_with_alpha_dot_terms():
     pytest.importorskip("warp")
-    af = parse(alpha_dot_document())
-    sims = [make_sim(af, 8, b, "tables") for b in ("torch", "warp")]
-    start = sims[0].x.clone()
-    start[:, 2] = -torch.linspace(1.0, 8.0, 8)
-    command = torch.tensor([[0.3, 0.05, -0.05, 0.6]]).repeat(8, 1)
-    for sim in sims:
-        sim.reset(start)
-        for _ in range(100):
-            sim.step(command)
-    assert (sims[0].x - sims[1].x).abs().max() < 1e-3
+    torch_x, warp_x = fly_one_second_on_both_backends(alpha_dot_document(), 0.3)
+    assert (torch_x - warp_x).abs().max() < 1e-3
 
 
 LAST = len(alpha_dot_document()["aero"]["tables"]) - 1

@@ -71,12 +71,19 @@ def motor_thrust(v_air_body: torch.Tensor, throttle: torch.Tensor, density: torc
                  p: ModelParams) -> torch.Tensor:
     """Thrust per motor [N, M] N from air velocity [N, 3], throttle [N, M] in [0, 1], rho [N]."""
     v_axial = torch.einsum("nmi,ni->nm", p.motor_axis, v_air_body)
+    mapped = thrust_map(v_axial, throttle, density, p)[0] if has_thrust_map(p) else None
+    return axial_thrust(v_axial, throttle, density, p, mapped)
+
+
+def axial_thrust(v_axial: torch.Tensor, throttle: torch.Tensor, density: torch.Tensor, p: ModelParams,
+                 mapped: torch.Tensor | None) -> torch.Tensor:
+    """:func:`motor_thrust` from the axial inflow [N, M] m/s; ``mapped`` [N, M] is the thrust map's
+    thrust where the airframe has one (used where motor_model is 1), else None."""
     delta = throttle.clamp(0.0, 1.0)
     v_discharge = v_axial + delta * (p.discharge_speed - v_axial)
     thrust = 0.5 * density[:, None] * p.disk_area * p.thrust_coefficient * v_discharge * (
         v_discharge - v_axial)
-    if has_thrust_map(p):
-        mapped, _, _ = thrust_map(v_axial, throttle, density, p)
+    if mapped is not None:
         thrust = torch.where(p.motor_model == THRUST_MAP, mapped, thrust)
     return torch.relu(thrust)
 
@@ -91,32 +98,32 @@ def propulsion_forces(v_air_body: torch.Tensor, throttle: torch.Tensor, density:
                       ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """(force [N, 3], moment [N, 3], thrust per motor [N, M]) in body axes about the CG, from the air
     velocity [N, 3], throttles [N, M], density [N] and the body rates [N, 3] rad/s (None: no gyroscopic
-    moment)."""
-    thrust = motor_thrust(v_air_body, throttle, density, p)
+    moment). The thrust map, where there is one, is evaluated once for thrust, torque and angular
+    momentum."""
+    v_axial = torch.einsum("nmi,ni->nm", p.motor_axis, v_air_body)  # [N, M]
+    mapped = thrust_map(v_axial, throttle, density, p) if has_thrust_map(p) else None
+    thrust = axial_thrust(v_axial, throttle, density, p, None if mapped is None else mapped[0])
     force_m = thrust.unsqueeze(-1) * p.motor_axis  # [N, M, 3]
     delta = throttle.clamp(0.0, 1.0)
     torque = -p.motor_spin * p.torque_coefficient * (p.torque_speed_constant * delta) ** 2
-    angular_momentum = None
-    if has_thrust_map(p):
-        v_axial = torch.einsum("nmi,ni->nm", p.motor_axis, v_air_body)
-        _, mapped_torque, angular_momentum = thrust_map(v_axial, throttle, density, p)
-        torque = torch.where(p.motor_model == THRUST_MAP, mapped_torque, torque)
+    if mapped is not None:
+        torque = torch.where(p.motor_model == THRUST_MAP, mapped[1], torque)
     torque = torque.masked_fill((p.no_propeller_torque != 0).unsqueeze(-1), 0.0)
     moment_m = torch.linalg.cross(p.motor_position, force_m, dim=-1) + torque.unsqueeze(-1) * (
         p.motor_axis)
     moment = moment_m.sum(dim=1)
-    if angular_momentum is not None:
-        moment = moment + propeller_moments(v_air_body, omega_body, thrust, angular_momentum, density, p)
+    if mapped is not None:
+        moment = moment + propeller_moments(v_air_body, v_axial, omega_body, thrust, mapped[2], density, p)
     return force_m.sum(dim=1), moment, thrust
 
 
-def propeller_moments(v_air_body: torch.Tensor, omega_body: torch.Tensor | None, thrust: torch.Tensor,
-                      angular_momentum: torch.Tensor, density: torch.Tensor, p: ModelParams) -> torch.Tensor:
+def propeller_moments(v_air_body: torch.Tensor, v_axial: torch.Tensor, omega_body: torch.Tensor | None,
+                      thrust: torch.Tensor, angular_momentum: torch.Tensor, density: torch.Tensor,
+                      p: ModelParams) -> torch.Tensor:
     """[N, 3] N m: gyroscopic and p-factor moments of the thrust-map motors (see the module doc) from the
-    air velocity [N, 3], body rates [N, 3] (None: no gyroscopic moment), thrust [N, M], angular momentum
-    [N, M] and density [N]."""
+    air velocity [N, 3], its axial part per motor [N, M], body rates [N, 3] (None: no gyroscopic
+    moment), thrust [N, M], angular momentum [N, M] and density [N]."""
     axis = p.motor_axis  # [N, M, 3]
-    v_axial = torch.einsum("nmi,ni->nm", axis, v_air_body)
     in_plane = v_air_body.unsqueeze(1) - v_axial.unsqueeze(-1) * axis  # [N, M, 3]
     speed = in_plane.norm(dim=-1)
     disk = 2.0 * thrust / (density[:, None] * p.disk_area)

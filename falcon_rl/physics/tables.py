@@ -19,6 +19,8 @@ output is then out_0 + alpha_dot * out_1 exactly, which ``alpha_dot.py`` solves 
 from __future__ import annotations
 
 import weakref
+from collections.abc import Callable
+from typing import Any
 
 import torch
 
@@ -47,38 +49,36 @@ THRUST_OUTPUT, TORQUE_OUTPUT, ANGULAR_MOMENTUM_OUTPUT = 6, 7, 8
 _CORNERS = torch.tensor([[(c >> a) & 1 for a in range(MAX_TABLE_AXES)] for c in range(8)])
 
 
-def has_terms(p: ModelParams, first: int, stop: int | None = None) -> bool:
-    """Whether ``p`` has table terms of outputs [first, stop) (stop None: first + 1). Read once per
-    ``table_output_start`` tensor (shared and fixed for a simulator's life) and cached, so that a
-    monomial airframe skips the table work without a host sync per call."""
-    stop = first + 1 if stop is None else stop
-    starts = p.table_output_start
-    key = id(starts)
-    cached = _STARTS.get(key)
-    if cached is None or cached[0]() is not starts:
-        ref = weakref.ref(starts, lambda _ref, key=key: _STARTS.pop(key, None))
-        cached = _STARTS[key] = (ref, [int(v) for v in starts.tolist()])
-    return cached[1][stop] > cached[1][first]
-
-
-#: id(table_output_start) -> (weak reference, its values)
-_STARTS: dict[int, tuple[weakref.ref, list[int]]] = {}
-
-
-def has_alpha_dot_terms(p: ModelParams) -> bool:
-    """Whether any table term of ``p`` multiplies alpha_dot (read once per ``table_exponents`` tensor,
-    shared and fixed, and cached: airframes without such terms skip the alpha-dot solve for free)."""
-    exponents = p.table_exponents
-    key = id(exponents)
-    cached = _ALPHA_DOT.get(key)
-    if cached is None or cached[0]() is not exponents:
-        ref = weakref.ref(exponents, lambda _ref, key=key: _ALPHA_DOT.pop(key, None))
-        cached = _ALPHA_DOT[key] = (ref, bool((exponents[:, ALPHA_DOT] > 0).any()))
+def _read_once(tensor: torch.Tensor, cache: dict[int, tuple[weakref.ref, Any]],
+               read: Callable[[torch.Tensor], Any]) -> Any:
+    """``read(tensor)``, computed once per tensor object (a shared, fixed table tensor) and kept in
+    ``cache`` while the tensor lives: a host read per simulator, not a host sync per call."""
+    key = id(tensor)
+    cached = cache.get(key)
+    if cached is None or cached[0]() is not tensor:
+        ref = weakref.ref(tensor, lambda _ref, key=key: cache.pop(key, None))
+        cached = cache[key] = (ref, read(tensor))
     return cached[1]
 
 
+def has_terms(p: ModelParams, first: int, stop: int | None = None) -> bool:
+    """Whether ``p`` has table terms of outputs [first, stop) (stop None: first + 1), read once per
+    ``table_output_start`` tensor, so that a monomial airframe skips the table work for free."""
+    stop = first + 1 if stop is None else stop
+    starts = _read_once(p.table_output_start, _STARTS, lambda t: [int(v) for v in t.tolist()])
+    return starts[stop] > starts[first]
+
+
+def has_alpha_dot_terms(p: ModelParams) -> bool:
+    """Whether any table term of ``p`` multiplies alpha_dot, read once per ``table_exponents`` tensor:
+    airframes without such terms skip the alpha-dot solve for free."""
+    return _read_once(p.table_exponents, _ALPHA_DOT, lambda t: bool((t[:, ALPHA_DOT] > 0).any()))
+
+
+#: id(table_output_start) -> (weak reference, its values)
+_STARTS: dict[int, tuple[weakref.ref, Any]] = {}
 #: id(table_exponents) -> (weak reference, whether a term multiplies alpha_dot)
-_ALPHA_DOT: dict[int, tuple[weakref.ref, bool]] = {}
+_ALPHA_DOT: dict[int, tuple[weakref.ref, Any]] = {}
 
 
 def multipliers(x: torch.Tensor, exponents: torch.Tensor) -> torch.Tensor:
