@@ -54,7 +54,7 @@ def run_studies(args: argparse.Namespace, studies: list[str]) -> tuple[dict[str,
     failures: dict = {}
     try:
         results = run_cells(cells, CellCache(out / "cells"), runner=args.runner, workers=args.workers,
-                            ray_address=args.ray_address)
+                            ray_address=args.ray_address, threads=args.threads)
     except CellsFailedError as error:
         results, failures = error.results, error.failures
     except ImportError as error:  # the Ray extra is missing

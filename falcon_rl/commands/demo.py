@@ -16,7 +16,16 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ._common import bounded_int, comma_list, emit, inside, nonnegative_int, output_dir, positive_int
+from ._common import (
+    bounded_int,
+    comma_list,
+    emit,
+    inside,
+    nonnegative_int,
+    output_dir,
+    positive_int,
+    use_threads,
+)
 
 NAME = "demo"
 HELP = "run the main job: shipped PPO vs LQR vs MPPI on the altitude protocol, trims, ground effect"
@@ -136,15 +145,13 @@ def _seen_flight(args: argparse.Namespace, airframe: str, out: Path) -> tuple[li
 
 
 def run(args: argparse.Namespace) -> int:
-    import torch
-
     from ..airframe import load_airframe
     from ..evaluation.report import result_document, write_report
 
     controllers = comma_list(args.controllers, "--controllers", CONTROLLERS)
     airframe = load_airframe(args.airframe).name
     out = output_dir(args.out)
-    torch.set_num_threads(args.threads)
+    use_threads(args)
     results, figures, training = _protocol(args, controllers, airframe, out)
     source = "trained here from scratch" if args.train else "shipped (falcon_rl/policies)"
     if not any(r.controller == "PPO" for r in results):

@@ -280,9 +280,10 @@ def normalize_result(result: Any) -> dict[str, Any]:
 
 def run_cell(cell: Cell, reference: str | None = None, threads: int = 1) -> dict[str, Any]:
     """Run ``cell`` with its study's cell function (or ``reference``, "module:attribute") on ``threads``
-    torch CPU threads (one: a cell's networks and batches are small, and the sweep's parallelism is its
-    workers), after seeding the global generators from :func:`global_seed`; returns the normalized
-    result (see :func:`normalize_result`) with its wall time in ``"seconds"``."""
+    torch CPU threads (the sweep's ``--threads``; one by default: a cell's networks and batches are small,
+    and the sweep's parallelism is its workers), after seeding the global generators from
+    :func:`global_seed`; returns the normalized result (see :func:`normalize_result`) with its wall time
+    in ``"seconds"``."""
     import torch
 
     function = resolve_function(reference or cell_reference(cell.study))

@@ -44,13 +44,14 @@ class CellsFailedError(RuntimeError):
         super().__init__(f"{len(failures)} of {total} cells failed: {names}")
 
 
-def _execute(cell: Cell, reference: str, paths: Sequence[str]) -> tuple[bool, Any]:
-    """Worker side: (True, result) or (False, "Type: message") of ``cell``, never raising."""
+def _execute(cell: Cell, reference: str, paths: Sequence[str], threads: int = 1) -> tuple[bool, Any]:
+    """Worker side: (True, result) or (False, "Type: message") of ``cell`` on ``threads`` torch threads,
+    never raising."""
     for path in paths:
         if path not in sys.path:
             sys.path.append(path)
     try:
-        return True, run_cell(cell, reference)
+        return True, run_cell(cell, reference, threads)
     except Exception as error:  # a failed cell is reported, the sweep goes on
         return False, _error_line(error)
 
@@ -78,10 +79,12 @@ def _check(runner: str, workers: int) -> None:
 
 
 def run_cells(cells: Iterable[Cell], cache: CellCache, runner: str = "local", workers: int = 1,
-              ray_address: str | None = None, progress: bool = True) -> dict[str, dict[str, Any]]:
+              ray_address: str | None = None, progress: bool = True, threads: int = 1
+              ) -> dict[str, dict[str, Any]]:
     """Results of ``cells`` (cell key -> result): cached ones read back, the others run (see the module
-    docstring) and cached as each finishes. Raises :class:`CellsFailedError` after the sweep when some cells
-    raised, and ValueError for a bad runner or worker count or a study without a cell function."""
+    docstring) on ``threads`` torch CPU threads each and cached as each finishes. Raises
+    :class:`CellsFailedError` after the sweep when some cells raised, and ValueError for a bad runner or
+    worker count or a study without a cell function."""
     _check(runner, workers)
     unique = list({cell.key(): cell for cell in cells}.items())
     references = {cell.study: cell_reference(cell.study) for _, cell in unique}  # fail before any run
@@ -112,13 +115,13 @@ def run_cells(cells: Iterable[Cell], cache: CellCache, runner: str = "local", wo
         if not todo:
             pass
         elif runner == "ray":
-            _run_ray(todo, references, paths, workers, ray_address, finish)
+            _run_ray(todo, references, paths, workers, ray_address, finish, threads)
         elif workers == 1:
             for key, cell in todo:
                 bar.set_description(f"cells ({cell.label()})")
-                finish(key, cell, _execute(cell, references[cell.study], ()))
+                finish(key, cell, _execute(cell, references[cell.study], (), threads))
         else:
-            _run_processes(todo, references, paths, workers, finish)
+            _run_processes(todo, references, paths, workers, finish, threads)
     finally:
         bar.close()
     if failures:
@@ -127,11 +130,11 @@ def run_cells(cells: Iterable[Cell], cache: CellCache, runner: str = "local", wo
 
 
 def _run_processes(todo: list[tuple[str, Cell]], references: dict[str, str], paths: list[str], workers: int,
-                   finish: Any) -> None:
+                   finish: Any, threads: int = 1) -> None:
     """Run ``todo`` on a spawn-context process pool, finishing each cell as it completes."""
     context = multiprocessing.get_context("spawn")
     with futures.ProcessPoolExecutor(max_workers=min(workers, len(todo)), mp_context=context) as pool:
-        pending = {pool.submit(_execute, cell, references[cell.study], paths): (key, cell)
+        pending = {pool.submit(_execute, cell, references[cell.study], paths, threads): (key, cell)
                    for key, cell in todo}
         try:
             for future in futures.as_completed(pending):
@@ -147,7 +150,7 @@ def _run_processes(todo: list[tuple[str, Cell]], references: dict[str, str], pat
 
 
 def _run_ray(todo: list[tuple[str, Cell]], references: dict[str, str], paths: list[str], workers: int,
-             address: str | None, finish: Any) -> None:
+             address: str | None, finish: Any, threads: int = 1) -> None:
     """Run ``todo`` as Ray tasks (one per cell), finishing each cell as it completes."""
     ray = import_ray()
     started_here = not ray.is_initialized()
@@ -159,7 +162,8 @@ def _run_ray(todo: list[tuple[str, Cell]], references: dict[str, str], paths: li
     pending: dict[Any, tuple[str, Cell]] = {}
     try:
         remote = ray.remote(num_cpus=1, max_retries=0)(_execute)
-        pending = {remote.remote(cell, references[cell.study], paths): (key, cell) for key, cell in todo}
+        pending = {remote.remote(cell, references[cell.study], paths, threads): (key, cell)
+                   for key, cell in todo}
         waiting = list(pending)
         while waiting:
             done, waiting = ray.wait(waiting, num_returns=1)
