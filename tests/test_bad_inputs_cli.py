@@ -190,6 +190,8 @@ CLI_CASES = [
     row("validate heights empty", "validate jsbsim --airframe navion --heights ,", "expected comma-separated"),
     row("validate duration zero", "validate jsbsim --airframe navion --duration 0", "'0' must be in (0, 3600] s"),
     row("validate duration nan", "validate jsbsim --airframe navion --duration nan", "not a finite number"),
+    row("validate dt zero", "validate jsbsim --airframe navion --dt 0", "'0' must be in (0, 0.05] s"),
+    row("validate dt large", "validate jsbsim --jsbsim-model c172p --dt 0.1", "'0.1' must be in (0, 0.05] s"),
     row("validate ground effect", "validate jsbsim --airframe navion --ground-effect sometimes",
         "--ground-effect: unknown ['sometimes']; choose from off, on, both"),
     row("validate excitation", "validate jsbsim --airframe navion --excitation spin",

@@ -60,15 +60,21 @@ def test_imported_aircraft_track_jsbsim_over_20_s(model, tmp_path):
 
 
 def test_cli_validate_jsbsim_model_json(capsys, tmp_path):
-    """One second of each excitation at one condition: a row per case, plots written, targets listed."""
+    """1.6 s of each excitation at one condition and a 20 ms step: a row per case, the doublets' responses
+    (run minus free flight), plots written, targets listed."""
     from falcon_rl.cli import main
 
     code = main(["validate", "jsbsim", "--jsbsim-model", "c172p", "--airspeeds", "50", "--heights", "300",
-                 "--duration", "1", "--out", str(tmp_path), "--json"])
+                 "--duration", "1.6", "--dt", "0.02", "--out", str(tmp_path), "--json"])
     out, _ = capsys.readouterr()
     assert code == 0
     doc = json.loads(out)
-    assert doc["airframe"] == "jsbsim_c172p" and not doc["skipped"]
+    assert doc["airframe"] == "jsbsim_c172p" and not doc["skipped"] and doc["dt_s"] == 0.02
     assert [r["excitation"] for r in doc["rows"]] == ["trim 50 m/s", "elevator 50 m/s", "aileron 50 m/s"]
     assert set(doc["rows"][0]["channels"]["phi"]) == {"unit", "r", "rmse"}
+    assert "response_channels" not in doc["rows"][0]
+    for row in doc["rows"][1:]:  # the doublet starts at 1 s: both responses are 0 before it, then move
+        assert row["duration_s"] == pytest.approx(1.6)
+        excited = {"elevator": "pitch_rate", "aileron": "roll_rate"}[row["excitation"].split()[0]]
+        assert row["response_channels"][excited]["r"] > 0.99
     assert all((tmp_path / p.split("/")[-1]).exists() for p in doc["plots"])

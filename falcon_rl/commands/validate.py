@@ -50,6 +50,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "--jsbsim-model)")
     parser.add_argument("--duration", type=bounded_float(0.0, 3600.0, "s"), default=None,
                         help="seconds per run (default 10; 20 with --jsbsim-model)")
+    parser.add_argument("--dt", type=bounded_float(0.0, 0.05, "s"), default=0.01,
+                        help="time step of both simulators, s (default 0.01, the paper's)")
     parser.add_argument("--ground-effect", default="off,on,both",
                         help="settings: off (both off), on (falcon-rl only, as in the paper), "
                              "both (JSBSim export with the same correction); default off,on,both")
@@ -91,9 +93,9 @@ def _validate(args: argparse.Namespace, airframe, out, ground_effect: tuple[str,
 
     doublet = Doublet(amplitude=args.doublet_amplitude)
     results = validate_jsbsim(airframe, out / "jsbsim", args.heights, ground_effect, excitation,
-                              args.duration, doublet=doublet, progress=True)
+                              args.duration, dt=args.dt, doublet=doublet, progress=True)
     plots = plot_overlays(results, out)
-    doc = {"airframe": airframe.name, "target": "jsbsim", "duration_s": args.duration, "dt_s": 0.01,
+    doc = {"airframe": airframe.name, "target": "jsbsim", "duration_s": args.duration, "dt_s": args.dt,
            "doublet": {"amplitude": doublet.amplitude, "start_s": doublet.start, "width_s": doublet.width},
            "jsbsim_aircraft": str(out / "jsbsim" / "aircraft" / airframe.name / f"{airframe.name}.xml"),
            "rows": [r.row() for r in results], "plots": [str(p) for p in plots]}
@@ -124,13 +126,18 @@ def _validate_model(args: argparse.Namespace) -> int:
     duration = args.duration or 20.0
     doublet = ModelDoublet()
     results, skipped = validate_model(airframe, args.jsbsim_model, out / "jsbsim", args.airspeeds, heights,
-                                      duration=duration, doublet=doublet)
+                                      duration=duration, dt=args.dt, doublet=doublet)
     plots = plot_overlays(results, out, PLOTTED_MODEL)
     doc = {"airframe": airframe.name, "jsbsim_model": args.jsbsim_model, "duration_s": duration,
+           "dt_s": args.dt,
            "doublet": {"amplitude": doublet.amplitude, "start_s": doublet.start, "width_s": doublet.width},
            "targets_r": TARGETS, "rows": [r.row() for r in results], "skipped": skipped,
            "plots": [str(p) for p in plots]}
     text = format_table(results, list(TARGETS))
+    answered = [r for r in results if r.response is not None]
+    if answered:
+        text += "\n\nResponse (each simulator's run minus its own free flight from the same trim):\n"
+        text += format_table(answered, list(TARGETS), attribute="response")
     text += "".join(f"\nskipped: {s}" for s in skipped)
     emit(args, doc, text + f"\n\nplots: {out}/")
     return 0

@@ -77,6 +77,9 @@ class CaseResult:
     jsbsim: Trajectory
     metrics: dict[str, dict[str, float | None]]  # channel -> {"r", "rmse"}
     kappa: tuple[float, float] = (1.0, 1.0)  # Phillips-Hunsaker (kappa_L, kappa_D) at the start
+    #: Agreement of the excitation's response: each simulator's run minus its own zero-input flight from
+    #: the same trim (removes what a trim's residual accelerations add to both runs); None when not flown.
+    response: dict[str, dict[str, float | None]] | None = None
 
     @property
     def min_altitude(self) -> float:
@@ -91,7 +94,9 @@ class CaseResult:
                 "duration_s": float(self.falcon.time[-1]), "min_altitude_m": self.min_altitude,
                 "below_ground": self.min_altitude <= 0.0, "kappa_lift_0": self.kappa[0],
                 "kappa_drag_0": self.kappa[1],
-                "channels": {k: {"unit": CHANNELS[k], **v} for k, v in self.metrics.items()}}
+                "channels": {k: {"unit": CHANNELS[k], **v} for k, v in self.metrics.items()},
+                **({} if self.response is None else
+                   {"response_channels": {k: {"unit": CHANNELS[k], **v} for k, v in self.response.items()}})}
 
 
 def channel_metrics(a: Trajectory, b: Trajectory) -> dict[str, dict[str, float | None]]:

@@ -28,9 +28,11 @@ def _cell(metrics: dict[str, float | None], unit: str) -> str:
     return f"{r} ({metrics['rmse']:.1e} {unit})"
 
 
-def format_table(results: Sequence[CaseResult], channels: Sequence[str] = HEADLINE) -> str:
-    """One block per (airframe, excitation): rows are 'h0 = .. m, GE ..', cells 'r (RMSE unit)'.
-    r is '-' where a channel stays constant (zero-input flight from trim)."""
+def format_table(results: Sequence[CaseResult], channels: Sequence[str] = HEADLINE,
+                 attribute: str = "metrics") -> str:
+    """One block per (airframe, excitation): rows are 'h0 = .. m, GE ..', cells 'r (RMSE unit)' of each
+    result's ``attribute`` ("metrics", or "response" where it was flown). r is '-' where a channel stays
+    constant (zero-input flight from trim)."""
     blocks = []
     keys = dict.fromkeys((r.airframe, r.case.excitation) for r in results)
     for airframe, excitation in keys:
@@ -40,7 +42,7 @@ def format_table(results: Sequence[CaseResult], channels: Sequence[str] = HEADLI
         lines = [f"{airframe}: {excitation}, Pearson r (RMSE) falcon-rl vs JSBSim, "
                  f"{rows[0].falcon.time[-1]:g} s", head, "-" * len(head.rstrip())]
         for r in rows:
-            cells = "".join(_cell(r.metrics[c], CHANNELS[c]).ljust(27) for c in channels)
+            cells = "".join(_cell(getattr(r, attribute)[c], CHANNELS[c]).ljust(27) for c in channels)
             flag = f"  [min altitude {r.min_altitude:.2f} m: below ground]" if r.min_altitude <= 0 else ""
             lines.append(_condition(r).ljust(width) + cells.rstrip() + flag)
         blocks.append("\n".join(lines))

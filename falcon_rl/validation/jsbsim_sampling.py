@@ -13,7 +13,9 @@ that computes JSBSim's properties from them (:class:`PropertyContext`). Then, nu
    dynamic pressure);
    (alpha_dot must: the physics solves it in closed form only where the force is linear in it);
 4. the rest (at most three) become the table's axes, sampled on the union of the breakpoints of the
-   tables indexed by that variable (so a table of tables is exact at its nodes) or on a default grid.
+   tables indexed by that variable (so a table of tables is exact at its nodes) or on a default grid;
+5. an axis in which C = x T(x) (JSBSim's ``alpha-rad`` times a table of ``alpha-rad``, not piecewise
+   linear in x) is also made a multiplier when that makes the term exact (T then is piecewise linear).
 
 The error each term leaves (table against the function at random points) is measured and returned, as
 is every function that could not be expressed, with the reason.
@@ -44,6 +46,15 @@ AXES = {
 #: A dependency moving C by less than this fraction of the strongest one's effect may be held at the
 #: reference point when more than three remain (weakest first); the error it leaves is measured.
 WEAK_FRACTION = 0.15
+#: A table axis also becomes a multiplier (C = x T(x)) when that cuts the term's largest error by this
+#: factor: JSBSim's "alpha x table(alpha)" (the c182's C_m_alpha) is then exact instead of a chord.
+SELF_MULTIPLIER_GAIN = 1e-3
+#: Grid nodes closer to 0 than this count as 0 when an axis divides its own coefficient; the quotient
+#: there is extrapolated from ZERO_STEP and 2 ZERO_STEP.
+ZERO_NODE = 1e-12
+#: A term whose largest error is below this is exact (round-off): nothing to improve.
+EXACT = 1e-12
+ZERO_STEP = 1e-6
 V = {name: k for k, name in enumerate(TABLE_VARIABLES)}
 #: Variables that may become multipliers.
 MULTIPLIER_CANDIDATES = ("elevator", "aileron", "rudder", "p", "q", "r", "alpha_dot", "alpha", "beta")
@@ -203,12 +214,21 @@ def convert(
         row["rms_coefficient"] = float(np.sqrt(np.mean(c0**2)))
         return None, row
     grids = [grid_for(var, node, flight, context.functions) for var in rest]
-    mesh = np.meshgrid(*grids, indexing="ij") if grids else []
-    x = dict(reference, **{var: m for var, m in zip(rest, mesh, strict=True)})
-    values = np.asarray(c_at(x) if grids else c_at(reference).reshape(()), dtype=np.float64)
+    values = _table_values(c_at, reference, rest, grids, multiply)
     if not np.any(values):
         row["reason"] = f"zero at the held inputs {sorted(context.held)}" if not held else "zero"
         return None, row
+    check = _random(flight, 2000, rng)
+    exact = c_at(check)
+    error = _table_error(values, rest, grids, multiply, check, exact)
+    for var in [v for v in rest if v in MULTIPLIER_CANDIDATES and np.max(np.abs(error)) > EXACT]:
+        # C = var T(var) (JSBSim's "alpha x table(alpha)") is not piecewise linear in var, T is
+        own = list(multiply)
+        own[V[var]] += 1
+        own_values = _table_values(c_at, reference, rest, grids, own)
+        own_error = _table_error(own_values, rest, grids, own, check, exact)
+        if np.max(np.abs(own_error)) < SELF_MULTIPLIER_GAIN * np.max(np.abs(error)):
+            multiply, values, error = own, own_values, own_error
     term = TableTerm(
         name,
         TABLE_OUTPUTS.index(output),
@@ -218,19 +238,51 @@ def convert(
         tuple(grids),
         values,
     )
-    check = _random(flight, 2000, rng)
-    exact = c_at(check)
-    factor = np.prod([check[k] ** e for k, e in zip(TABLE_VARIABLES, multiply, strict=True) if e], axis=0)
-    approx = factor * (multilinear(tuple(grids), values, [check[v] for v in rest]) if grids else values)
     row.update(
         axes=rest,
         multiply=[k for k in TABLE_VARIABLES if multiply[V[k]]],
         held_at_reference=held,
-        max_error=float(np.max(np.abs(approx - exact))),
-        rms_error=float(np.sqrt(np.mean((approx - exact) ** 2))),
+        max_error=float(np.max(np.abs(error))),
+        rms_error=float(np.sqrt(np.mean(error**2))),
         rms_coefficient=float(np.sqrt(np.mean(exact**2))),
     )
     return term, row
+
+
+def _table_values(
+    c_at: Callable[[Mapping[str, np.ndarray]], np.ndarray],
+    reference: Mapping[str, np.ndarray],
+    axes: list[str],
+    grids: list[np.ndarray],
+    multiply: list[int],
+) -> np.ndarray:
+    """Table values on ``grids`` [G1, .., Gk] such that C = prod(x^multiply) T(axes) (the multipliers that
+    are not axes are 1 in ``reference``). An axis that is also a multiplier divides C by its own value; at
+    a node where that value is 0 the quotient is extrapolated linearly from two points just above it
+    (exact for a piecewise-linear T)."""
+    mesh = np.meshgrid(*grids, indexing="ij") if grids else []
+    x = dict(reference, **{var: m for var, m in zip(axes, mesh, strict=True)})
+    values = np.asarray(c_at(x) if grids else c_at(reference).reshape(()), dtype=np.float64)
+    for var, grid_x in zip(axes, mesh, strict=True):
+        if multiply[V[var]]:
+            zero = np.abs(grid_x) < ZERO_NODE
+            near = [c_at(dict(x, **{var: np.where(zero, h, grid_x)})) / h for h in (ZERO_STEP, 2 * ZERO_STEP)]
+            values = np.where(zero, 2.0 * near[0] - near[1], values / np.where(zero, 1.0, grid_x))
+    return values
+
+
+def _table_error(
+    values: np.ndarray,
+    axes: list[str],
+    grids: list[np.ndarray],
+    multiply: list[int],
+    check: Mapping[str, np.ndarray],
+    exact: np.ndarray,
+) -> np.ndarray:
+    """The term's error [P] against ``exact`` = C at the ``check`` points."""
+    factor = np.prod([check[k] ** e for k, e in zip(TABLE_VARIABLES, multiply, strict=True) if e], axis=0)
+    approx = factor * (multilinear(tuple(grids), values, [check[v] for v in axes]) if grids else values)
+    return approx - exact
 
 
 def grid_for(var: str, node: Node, flight: Flight, functions: Mapping[str, Node]) -> np.ndarray:
@@ -246,7 +298,7 @@ def grid_for(var: str, node: Node, flight: Flight, functions: Mapping[str, Node]
         for name, (v, scale) in GRID_SOURCES.items()
         if prop == name and v == var
     ]
-    # The default grid joins the breakpoints: a table times its own variable (C_m = alpha T(alpha)) is not
-    # piecewise linear, and the extra nodes bound its interpolation error.
+    # The default grid joins the breakpoints: the extra nodes bound the interpolation error of a coefficient
+    # that is not piecewise linear in ``var`` (a table times its own variable is made exact in ``convert``).
     merged = np.unique(np.round(np.concatenate([flight.grids[var], *points]), 9))
     return merged[np.concatenate([[True], np.diff(merged) > 1e-6])]
