@@ -181,10 +181,14 @@ def env_facts(env: Any, spec: Any) -> dict[str, Any]:
 
 
 def training_rows(spec: Any, facts: Mapping[str, Any]) -> list[tuple[str, ...]]:
-    """Per recipe: its task fields and the control rate and horizon they give."""
+    """Per recipe (and per airframe with its own training defaults): its task fields and the control rate
+    and horizon they give."""
     rows = []
     task_defaults = dict(getattr(spec, "defaults", {}) or {})
-    for algorithm, fields in spec.training.items():
+    per_airframe = [(f"{algorithm} ({airframe})", {**dict(spec.training.get(algorithm, {})), **dict(fields)})
+                    for airframe, recipes in getattr(spec, "airframe_training", {}).items()
+                    for algorithm, fields in recipes.items()]
+    for algorithm, fields in [*spec.training.items(), *per_airframe]:
         fields = dict(fields)
         env_options = {**task_defaults, **dict(fields.get("env_options", {}) or {})}
         dt = float(env_options.get("dt", facts["dt"]))

@@ -70,7 +70,7 @@ TRIMS = ([("jsbsim_c172p", "c172p", v) for v in (40.0, 50.0, 60.0)]
          + [("jsbsim_c182", "c182", v) for v in (40.0, 50.0, 60.0)]
          + [("jsbsim_pa28", "pa28", v) for v in (45.0, 50.0)])
 #: Tolerances: alpha (deg), elevator (deg), throttle, bank (deg).
-ALPHA_TOL, ELEVATOR_TOL, THROTTLE_TOL, BANK_TOL = 0.005, 0.025, 0.002, 0.005
+ALPHA_TOL, ELEVATOR_TOL, THROTTLE_TOL, BANK_TOL = 0.005, 0.015, 0.002, 0.005
 
 
 @pytest.mark.parametrize(("airframe", "model", "airspeed"), TRIMS)

@@ -111,6 +111,7 @@ TOY_SPEC = TaskSpec(
     metrics=(Metric("survival", "Surv."), Metric("height_rmse_m", "h RMSE", "m")),
     controllers={"trim": TRIM_HOLD}, figure=toy_figure,
     training={"ppo": {"num_envs": 4, "env_options": {"decimation": 2}}},
+    airframe_training={"airship_v7": {"ppo": {"num_envs": 8}}},
 )
 
 
@@ -168,6 +169,11 @@ def test_toy_task_is_reached_from_its_name(toy_task, tmp_path, capsys) -> None:
         make_controller("lqr", env)
     cfg = algorithm("ppo").make_config(TOY, frames=1000)
     assert (cfg.num_envs, cfg.env_options, cfg.frames) == (4, {"decimation": 2}, 1000)
+    # an airframe's own training defaults go on top of the task's; the flags go on top of both
+    cfg = algorithm("ppo").make_config(TOY, airframe="airship_v7")
+    assert (cfg.num_envs, cfg.env_options) == (8, {"decimation": 2})
+    assert algorithm("ppo").make_config(TOY, airframe="airship_v7", num_envs=2).num_envs == 2
+    assert toy_task.training_defaults("ppo", "navion") == {"num_envs": 4, "env_options": {"decimation": 2}}
 
 
 def test_toy_task_is_gone_after_unregistering(toy_task) -> None:
@@ -192,6 +198,9 @@ def test_registry_errors() -> None:
     with pytest.raises(ValueError, match="unknown recipes"):
         TaskSpec(name="bad", task=ToyTask, config=ToyConfig, gym_id="x/Bad-v0", title="bad",
                  training={"dqn": {}})
+    with pytest.raises(ValueError, match=r"unknown recipes \['dqn'\]"):
+        TaskSpec(name="bad", task=ToyTask, config=ToyConfig, gym_id="x/Bad-v0", title="bad",
+                 airframe_training={"navion": {"dqn": {}}})
     with pytest.raises(ValueError, match=r"package\.module:attribute"):
         resolve("falcon_rl.evaluation.protocols")
     assert resolve("falcon_rl.baselines.lqr:AltitudeLQR.from_env").__name__ == "from_env"

@@ -142,13 +142,16 @@ def transition_shapes(env: TransformedEnv) -> dict[tuple[str, ...], tuple[int, .
 def config_from(cls: type, task: str, algorithm: str, defaults: dict | None = None,
                 **overrides) -> TrainConfig:
     """``cls`` with the recipe's task-independent ``defaults``, then the task's defaults for
-    ``algorithm`` (``task_spec(task).training``), then ``overrides`` (None values are ignored)."""
+    ``algorithm`` (``task_spec(task).training``, with the airframe's ``airframe_training`` on top), then
+    ``overrides`` (None values are ignored)."""
     names = {f.name for f in fields(cls)}
     unknown = set(overrides) - names
     if unknown:
         raise TypeError(f"unknown {cls.__name__} fields {sorted(unknown)}")
     given = {k: v for k, v in overrides.items() if v is not None}
-    values = {**copy.deepcopy(defaults or {}), **task_spec(task).training_defaults(algorithm), **given}
+    airframe = given.get("airframe", (defaults or {}).get("airframe", cls.airframe))
+    task_defaults = task_spec(task).training_defaults(algorithm, airframe)
+    values = {**copy.deepcopy(defaults or {}), **task_defaults, **given}
     return cls(task=task, **values)
 
 

@@ -4,7 +4,7 @@
     env = make_env(spec.name, "volantex_ranger")                     # spec.task, spec.config
     policy = spec.controller("lqr")(env)                              # a baseline that applies
     result = spec.protocol_function()(airframe, label, factory, episodes=20)
-    defaults = spec.training_defaults("ppo")                          # recipe fields of the task
+    defaults = spec.training_defaults("ppo", "airship_v7")            # recipe fields of the task
     spec.defaults                                                     # what make_env builds by default
 
 Every task module registers its own spec beside its Task and config classes; a task defined
@@ -87,7 +87,9 @@ class TaskSpec:
     builds the policy for the protocol's env. ``controllers`` maps a controller name to a factory
     ``(env) -> policy`` (TensorDictModule reading the env's keys, writing "action"). ``figure`` is
     called as ``figure(result, path) -> path``. ``training`` maps a recipe name (ppo, sac, td3) to the
-    fields of its config that this task sets on top of the recipe's own defaults. ``defaults`` are the
+    fields of its config that this task sets on top of the recipe's own defaults, and
+    ``airframe_training`` maps an airframe name to the recipe fields that airframe sets on top of those
+    (e.g. another batch shape for the Airship V7's altitude PPO). ``defaults`` are the
     settings an env of this task is built with unless the caller gives others (``make_env``,
     ``FixedWingEnvConfig``, the Gymnasium ids): env fields of :data:`ENV_DEFAULT_FIELDS` and fields of
     the task config (reward settings); they are what the recipes train on, so the env a user builds
@@ -107,10 +109,11 @@ class TaskSpec:
     controllers: Mapping[str, Ref] = field(default_factory=dict)
     figure: Ref | None = None
     training: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    airframe_training: Mapping[str, Mapping[str, Mapping[str, Any]]] = field(default_factory=dict)
     defaults: Mapping[str, Any] = field(default_factory=lambda: {"decimation": TRAINING_DECIMATION})
 
     def __post_init__(self) -> None:
-        unknown = set(self.training) - set(ALGORITHMS)
+        unknown = set(self.training).union(*map(set, self.airframe_training.values())) - set(ALGORITHMS)
         if unknown:
             raise ValueError(f"task {self.name!r}: training defaults for unknown recipes {sorted(unknown)}; "
                              f"recipes: {list(ALGORITHMS)}")
@@ -121,8 +124,13 @@ class TaskSpec:
                              f"{list(ENV_DEFAULT_FIELDS)} nor fields of {self.config.__name__}")
         object.__setattr__(self, "defaults", MappingProxyType(dict(self.defaults)))
         object.__setattr__(self, "controllers", MappingProxyType(dict(self.controllers)))
-        object.__setattr__(self, "training", MappingProxyType(
-            {name: MappingProxyType(dict(values)) for name, values in self.training.items()}))
+
+        def freeze(per: Mapping[str, Mapping[str, Any]]) -> Mapping[str, Mapping[str, Any]]:
+            return MappingProxyType({name: MappingProxyType(dict(values)) for name, values in per.items()})
+
+        object.__setattr__(self, "training", freeze(self.training))
+        object.__setattr__(self, "airframe_training", MappingProxyType(
+            {airframe: freeze(per) for airframe, per in self.airframe_training.items()}))
 
     def controller(self, name: str) -> Callable[..., Any]:
         """Factory ``(env) -> policy`` of baseline ``name``; one-line ValueError naming the baselines
@@ -152,9 +160,11 @@ class TaskSpec:
         fields = {k: copy.deepcopy(v) for k, v in self.defaults.items() if k not in ENV_DEFAULT_FIELDS}
         return self.config(**{**fields, **overrides})
 
-    def training_defaults(self, algorithm: str) -> dict[str, Any]:
-        """A fresh (deep) copy of the config fields this task sets for recipe ``algorithm``."""
-        return copy.deepcopy(dict(self.training.get(algorithm, {})))
+    def training_defaults(self, algorithm: str, airframe: str | None = None) -> dict[str, Any]:
+        """A fresh (deep) copy of the config fields this task sets for recipe ``algorithm``, with those
+        of ``airframe`` (its ``airframe_training`` entry, when it has one) on top."""
+        per_airframe = self.airframe_training.get(airframe, {}) if airframe is not None else {}
+        return copy.deepcopy({**self.training.get(algorithm, {}), **per_airframe.get(algorithm, {})})
 
 
 _SPECS: dict[str, TaskSpec] = {}
