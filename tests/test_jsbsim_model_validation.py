@@ -39,24 +39,34 @@ def test_cli_refuses_an_unknown_jsbsim_model(tmp_path, capsys):
     assert code != 0 and "unknown JSBSim aircraft 'no_such'" in capsys.readouterr().err
 
 
+#: Pitch-rate r floor on the elevator doublet at dt = 0.01 s: 0.999 (the issue's target), the pa28's
+#: 0.998 (measured 0.9986: JSBSim's alpha-dot lags one frame; 0.9999 at dt = 0.0025 s, see
+#: docs/jsbsim_import.md).
+PITCH_RATE_FLOOR = {"c172p": 0.999, "pa28": 0.998, "c182": 0.999}
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("model", ["c172p", "pa28", "c182"])
 def test_imported_aircraft_track_jsbsim_over_20_s(model, tmp_path):
-    """20 s doublets at 50 m/s, 10 and 300 m. Elevator: altitude, airspeed and pitch rate at r >= 0.998
-    (measured 0.9986-0.9999: the issue's 0.999 is met by the c172p, missed by the pa28's pitch rate and
-    the c182's altitude and airspeed, see docs/jsbsim_import.md), roll rate and bank at r >= 0.99
-    (measured 0.997-0.9998). Aileron: roll rate and bank at r >= 0.999 (measured 0.9996-0.9999)."""
+    """20 s from trim at 50 m/s, 10 and 300 m (measured in docs/jsbsim_import.md). Elevator doublet:
+    altitude and airspeed r >= 0.999, raw and as the response (run minus own free flight), pitch rate
+    at its floor, roll rate and bank >= 0.99. Aileron doublet: roll rate and bank >= 0.999, and the
+    barely excited altitude response >= 0.999."""
     results, skipped = validate_model(load_airframe(f"jsbsim_{model}"), model, tmp_path, (50.0,),
-                                      (10.0, 300.0), ("elevator", "aileron"), duration=20.0)
+                                      (10.0, 300.0), ("trim", "elevator", "aileron"), duration=20.0)
     assert not skipped
     for r in results:
-        m = r.metrics
-        if r.case.excitation.startswith("elevator"):
-            longitudinal = min(m[c]["r"] for c in ("altitude", "airspeed", "pitch_rate"))
-            assert longitudinal >= 0.998, json.dumps(r.row())
+        m, response = r.metrics, r.response
+        if r.case.excitation.startswith("trim"):
+            assert response is None
+        elif r.case.excitation.startswith("elevator"):
+            for channel in ("altitude", "airspeed"):
+                assert min(m[channel]["r"], response[channel]["r"]) >= 0.999, json.dumps(r.row())
+            assert m["pitch_rate"]["r"] >= PITCH_RATE_FLOOR[model], json.dumps(r.row())
             assert m["roll_rate"]["r"] >= 0.99 and m["phi"]["r"] >= 0.99, json.dumps(r.row())
         else:
             assert m["roll_rate"]["r"] >= 0.999 and m["phi"]["r"] >= 0.999, json.dumps(r.row())
+            assert response["altitude"]["r"] >= 0.999, json.dumps(r.row())
 
 
 def test_cli_validate_jsbsim_model_json(capsys, tmp_path):
