@@ -185,9 +185,9 @@ def training_rows(spec: Any, facts: Mapping[str, Any]) -> list[tuple[str, ...]]:
     and horizon they give."""
     rows = []
     task_defaults = dict(getattr(spec, "defaults", {}) or {})
-    per_airframe = [(f"{algorithm} ({airframe})", {**dict(spec.training.get(algorithm, {})), **dict(fields)})
+    per_airframe = [(f"{algorithm} ({airframe})", spec.training_defaults(algorithm, airframe))
                     for airframe, recipes in getattr(spec, "airframe_training", {}).items()
-                    for algorithm, fields in recipes.items()]
+                    for algorithm in recipes]
     for algorithm, fields in [*spec.training.items(), *per_airframe]:
         fields = dict(fields)
         env_options = {**task_defaults, **dict(fields.get("env_options", {}) or {})}

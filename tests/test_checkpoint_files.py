@@ -14,9 +14,8 @@ from pathlib import Path
 import pytest
 import torch
 
-import falcon_rl.policies
 from falcon_rl.cli import main
-from falcon_rl.policies import available, read_policy
+from falcon_rl.policies import HERE, available, read_policy
 from falcon_rl.policies.format import LEGACY_FORMATS, content_digest, read_document, seal
 from falcon_rl.recipes.checkpoint import load_checkpoint
 
@@ -205,7 +204,7 @@ def test_policy_and_checkpoint_files_are_sealed(trained: Path):
 def test_shipped_policies_load(stem):
     """A shipped file is either of the current format with a verified checksum, or predates the checksum
     (format /1) and loads after the structure checks."""
-    path = Path(falcon_rl.policies.__file__).parent / f"{stem}.pt"  # sac_ and td3_ files too
+    path = HERE / f"{stem}.pt"  # sac_ and td3_ files too
     doc = read_document(path, "policy")
     assert doc["format"] in LEGACY_FORMATS or doc["sha256"] == content_digest(doc)
     policy, meta = read_policy(path)
