@@ -56,7 +56,7 @@ class PPOConfig(TrainConfig):
 
 
 #: Task-independent defaults: none beyond PPOConfig's. Each task's ``TaskSpec.training["ppo"]`` sets its
-#: own (altitude: 512 envs x 16 steps, attitude: 256 x 32; 8 M frames, 20 Hz control; see their modules).
+#: own (altitude and attitude: 256 envs x 32 steps, 8 M frames, 20 Hz control; see their modules).
 DEFAULTS: dict = {}
 
 

@@ -273,15 +273,14 @@ ALTITUDE_METRICS: tuple[Metric, ...] = (
     Metric("survival", "Surv."), Metric("acquisition", "Acq."), Metric("rmse_m", "RMSE", "m"),
     Metric("settling_time_s", "t_s", "s"), Metric("overshoot_m", "Over.", "m"))
 
-#: Training defaults (on top of each recipe's own). PPO on the Ranger, 2-core CPU, warp with the one-launch
-#: env step: 512 envs x 16 steps per batch (8,192 frames, as 256 x 32 before, at ~28 k env-steps/s
-#: including learning against ~21 k), 8 M frames, final 100-episode protocol: seed 0 survival 1,
-#: acquisition 1, RMSE 0.30 m in 292 s of training; seed 1 RMSE 0.10 m in 285 s. The former 256 x 32
-#: batches reached RMSE 0.031 m (seed 1) in 428 s; fewer frames are seed-dependent (4 M: seed 0 RMSE
-#: 0.17 m, seed 1 0.87 m; 6 M: seed 1 0.22 m, seed 2 acquisition 0). SAC and TD3 reach survival 1,
-#: acquisition 1 and RMSE 0.37 / 0.35 m after 400 k frames (falcon_rl/policies/README.md). The Airship V7
-#: keeps 256 x 32 batches: with them seeds 0 and 1 reach RMSE 0.080 / 0.074 m (acquisition 1); 512 x 16
-#: left seed 1 at acquisition 0.43, RMSE 0.61 m.
+#: Training defaults (on top of each recipe's own). PPO: 256 envs x 32 steps per batch (8,192 frames),
+#: 8 M frames, 20 s episodes, on every airframe. On the Ranger (2-core CPU shared with other jobs, final
+#: 100-episode protocol) seeds 0 / 1 / 2 reach RMSE 0.047 / 0.031 / 0.112 m, survival and acquisition 1;
+#: 512 x 16 batches, which run ~30 % faster on two cores, left them at 0.30 / 0.10 / 0.144 m, and
+#: 12 M frames of 256 x 32 at 0.288 m (seed 0) and 0.018 m (seed 2). On the Airship V7 seeds 0 / 1 / 2
+#: reach 0.080 / 0.074 / 0.38 m (512 x 16: seed 1 acquisition 0.43, RMSE 0.61 m). SAC and TD3 reach
+#: survival 1, acquisition 1 and RMSE 0.37 / 0.35 m on the Ranger after 400 k frames
+#: (falcon_rl/policies/README.md).
 SPEC = register_task(TaskSpec(
     name="altitude", task=AltitudeTask, config=AltitudeConfig, gym_id="falcon_rl/Altitude-v0",
     title="Altitude acquisition and hold",
@@ -289,9 +288,8 @@ SPEC = register_task(TaskSpec(
     controllers={"lqr": "falcon_rl.baselines.lqr:AltitudeLQR.from_env",
                  "mppi": "falcon_rl.baselines.mppi:altitude_mppi", "trim": TRIM_HOLD},
     figure="falcon_rl.viz.evaluation:plot_altitude",
-    training={"ppo": {"num_envs": 512, "rollout_steps": 16, "frames": 8_000_000, "episode_seconds": 20.0,
+    training={"ppo": {"num_envs": 256, "rollout_steps": 32, "frames": 8_000_000, "episode_seconds": 20.0,
                       "reward_scale": 0.1},
               "sac": {"episode_seconds": 20.0}, "td3": {"episode_seconds": 20.0}},
-    airframe_training={"airship_v7": {"ppo": {"num_envs": 256, "rollout_steps": 32}}},
     defaults=TRAINING_ENV_OPTIONS,
 ))
