@@ -252,8 +252,7 @@ def test_policies_fly_their_own_task_or_a_derived_one(tmp_path) -> None:
     assert make_controller(str(altitude_policy), climb).meta["task"] == "altitude"  # the same MDP
     document = torch.load(altitude_policy, map_location="cpu", weights_only=True)
     document["meta"]["task"] = "climb_descend"  # same sizes, but altitude does not derive from it
-    document.pop("sha256", None)
-    torch.save(seal(document), tmp_path / "climb.pt")
+    torch.save(seal(document), tmp_path / "climb.pt")  # re-sealed: the edit alone fails the checksum
     altitude = make_env("altitude", "volantex_ranger", num_envs=1)
     with pytest.raises(ValueError, match="a policy of task 'climb_descend' does not fly task 'altitude'"):
         make_controller(str(tmp_path / "climb.pt"), altitude)

@@ -274,13 +274,9 @@ ALTITUDE_METRICS: tuple[Metric, ...] = (
     Metric("settling_time_s", "t_s", "s"), Metric("overshoot_m", "Over.", "m"))
 
 #: Training defaults (on top of each recipe's own). PPO: 256 envs x 32 steps per batch (8,192 frames),
-#: 8 M frames, 20 s episodes, on every airframe. On the Ranger (2-core CPU shared with other jobs, final
-#: 100-episode protocol) seeds 0 / 1 / 2 reach RMSE 0.047 / 0.031 / 0.112 m, survival and acquisition 1;
-#: 512 x 16 batches, which run ~30 % faster on two cores, left them at 0.30 / 0.10 / 0.144 m, and
-#: 12 M frames of 256 x 32 at 0.288 m (seed 0) and 0.018 m (seed 2). On the Airship V7 seeds 0 / 1 / 2
-#: reach 0.080 / 0.074 / 0.38 m (512 x 16: seed 1 acquisition 0.43, RMSE 0.61 m). SAC and TD3 reach
-#: survival 1, acquisition 1 and RMSE 0.37 / 0.35 m on the Ranger after 400 k frames
-#: (falcon_rl/policies/README.md).
+#: 8 M frames, 20 s episodes, on every airframe: on the Ranger it holds the target to RMSE 0.03-0.11 m
+#: over three seeds, against 0.10-0.30 m with 512 x 16 batches (which train ~30 % faster on two
+#: cores). Every seed and variant tried, PPO, SAC and TD3, is in falcon_rl/policies/README.md.
 SPEC = register_task(TaskSpec(
     name="altitude", task=AltitudeTask, config=AltitudeConfig, gym_id="falcon_rl/Altitude-v0",
     title="Altitude acquisition and hold",
