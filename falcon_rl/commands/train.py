@@ -53,7 +53,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="continue from <out>/checkpoint.pt when it exists, else start a new run")
     parser.add_argument("--logger", choices=["csv", "tensorboard", "wandb", "none"], default="csv")
     parser.add_argument("--eval-every", type=nonnegative_int, default=None,
-                        help="frames between evaluations (0: only the final one)")
+                        help="frames between validations (0: only the final evaluation); with the "
+                             "recipe field keep_best the best validated snapshot is shipped")
     parser.add_argument("--eval-episodes", type=nonnegative_int, default=None,
                         help="episodes of the final evaluation")
     parser.add_argument("--threads", type=positive_int, default=None, help="torch CPU threads (default 1)")

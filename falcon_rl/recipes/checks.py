@@ -113,6 +113,9 @@ def check_config(cfg: object) -> None:
     batch_size, buffer_size = getattr(cfg, "batch_size", 1), getattr(cfg, "buffer_size", None)
     if buffer_size is not None and batch_size > buffer_size:
         raise ValueError(f"batch_size ({batch_size}) must not exceed buffer_size ({buffer_size})")
+    if getattr(cfg, "keep_best", False) and not (cfg.eval_every and cfg.eval_episodes):  # type: ignore[attr-defined]
+        raise ValueError("keep_best needs eval_every > 0 and eval_episodes > 0 (the validation evaluations "
+                         "it picks the policy from)")
 
 
 __all__ = ["MAX_COUNT", "MAX_ENVS", "MAX_FRAMES", "check_config"]

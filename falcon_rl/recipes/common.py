@@ -77,6 +77,9 @@ class TrainConfig:
     checkpoint_every: int = 2_000_000
     #: Evaluate on a short protocol every this many frames (0: only at the end).
     eval_every: int = 0
+    #: Ship the best of the periodic evaluations' snapshots and the last weights, scored on validation
+    #: episodes (:mod:`falcon_rl.recipes.selection`), instead of the last weights; needs ``eval_every``.
+    keep_best: bool = False
     #: Episodes of the periodic evaluation and of the final one (on the task's protocol: per maneuver on
     #: the attitude protocol), and their length, s (None: the protocol's own, 30 s on altitude).
     eval_episodes: int = 16

@@ -27,13 +27,16 @@ def deployed(net: PolicyNet) -> DeployedPolicy:
     return policy_from_document(policy_document(net, {}))
 
 
-def evaluate(net: PolicyNet, cfg: TrainConfig, label: str, episodes: int, **options) -> ProtocolResult | None:
-    """Run the task's protocol on a frozen copy of ``net`` with ``episodes`` (per case, e.g. per
-    maneuver), ``cfg.eval_seconds`` and ``options`` (protocol options); None for a task without one."""
+def evaluate(net: PolicyNet | dict, cfg: TrainConfig, label: str, episodes: int, seed_offset: int = EVAL_SEED,
+             **options) -> ProtocolResult | None:
+    """Run the task's protocol on a frozen copy of ``net`` (a network or a policy document) with
+    ``episodes`` (per case, e.g. per maneuver), seed ``cfg.seed + seed_offset`` (the test's by default;
+    periodic evaluations use the validation seed), ``cfg.eval_seconds`` and ``options`` (protocol
+    options); None for a task without one."""
     spec = task_spec(cfg.task)
     if spec.protocol is None:
         return None
-    policy = deployed(net)
+    policy = policy_from_document(net) if isinstance(net, dict) else deployed(net)
 
     def factory(env):
         return TensorDictModule(policy.to(env.device), in_keys=["observation"], out_keys=["action"])
@@ -42,7 +45,7 @@ def evaluate(net: PolicyNet, cfg: TrainConfig, label: str, episodes: int, **opti
     device = torch.device(cfg.device)
     cuda = [device.index or 0] if device.type == "cuda" else []
     with torch.random.fork_rng(devices=cuda):
-        return protocol(cfg.airframe, label, factory, episodes=episodes, seed=cfg.seed + EVAL_SEED,
+        return protocol(cfg.airframe, label, factory, episodes=episodes, seed=cfg.seed + seed_offset,
                         backend=cfg.backend, device=cfg.device, episode_seconds=cfg.eval_seconds, **options)
 
 

@@ -1,5 +1,5 @@
 """The bookkeeping around a recipe's loop: seeding, resume, collection in segments, counters, logs,
-progress bar, periodic checkpoints and evaluations, and the final policy export.
+progress bar, periodic checkpoints and validations, and the final policy export.
 
     doc = prepare("ppo", cfg)                      # checks, threads, seeds; the checkpoint to resume
     env, nets, optimizers = ...                    # built after seeding: weights follow cfg.seed
@@ -15,6 +15,12 @@ and a run killed and resumed from its last checkpoint ends with the weights of a
 collection runs in segments that end where a checkpoint falls due, and every segment starts a fresh
 Collector on envs reset and staggered from the counters, from the generator states the checkpoint
 holds.
+
+Evaluations: every ``eval_every`` frames the current weights fly the task's protocol on validation
+episodes (seed + ``VALIDATION_SEED``); with ``keep_best`` the run ships the best of those snapshots
+and its last weights (:mod:`.selection`; the checkpoint keeps the best so far and the last weights,
+to go on training from). The final evaluation flies the shipped policy on the test episodes (seed +
+``EVAL_SEED``), which no choice of the run has seen.
 """
 
 from __future__ import annotations
@@ -30,7 +36,9 @@ import torch
 from tensordict import TensorDictBase
 from torchrl.collectors import Collector
 
-from ..policies import FileFormatError, export_torchscript, save_policy
+from ..envs import task_spec
+from ..policies import FileFormatError, export_torchscript
+from ..policies.format import atomic_save, policy_document
 from .checkpoint import check_resumable, load_checkpoint, load_replay, restore, save_checkpoint
 from .checks import check_config
 from .common import (
@@ -45,6 +53,7 @@ from .common import (
 )
 from .evaluate import eval_scalars, evaluate
 from .logging import Progress, log_scalars, make_logger
+from .selection import VALIDATION_SEED, BestPolicy
 
 #: Files a run writes under ``out`` (each through ``<name>.tmp``).
 OUTPUT_FILES = ("checkpoint.pt", "policy.pt", "policy.ts", "summary.json")
@@ -94,6 +103,10 @@ class TrainingRun:
         self.name = f"{algorithm}_{cfg.task}_{cfg.airframe}"
         self.history: list[dict[str, float]] = []
         self.final_eval = None
+        metric = task_spec(cfg.task).select_on
+        if cfg.keep_best and metric is None:
+            raise ValueError(f"keep_best: task {cfg.task!r} names no metric to select on (select_on)")
+        self.best = BestPolicy(metric) if cfg.keep_best else None
 
     # ------------------------------------------------------------------ files
     @property
@@ -111,6 +124,9 @@ class TrainingRun:
                 if "replay" not in doc:
                     raise FileFormatError(path, "checkpoint holds no replay buffer")
                 load_replay(self.replay, doc["replay"], path, transition_shapes(self.env))
+            if self.best is not None:
+                self.best.load(doc.get("extra", {}).get("best", {"doc": None, "score": [], "frames": -1,
+                                                                 "summary": {}}), path)
         self.logger = make_logger(self.cfg.logger, self.out, self.name, self.cfg.to_dict())
         self.stats = EpisodeStats(frames_at_start=self.counters.frames)
         self.progress = Progress(self.cfg.frames, self.counters.frames, self.name, self.cfg.progress)
@@ -152,7 +168,8 @@ class TrainingRun:
         return save_checkpoint(self.checkpoint_path, algorithm=self.algorithm, config=self.cfg.to_dict(),
                                counters=dataclasses.asdict(self.counters), modules=self.modules,
                                optimizers=self.optimizers, norm=self.actor.norm.stats(), env=self.env,
-                               replay=self.replay)
+                               replay=self.replay,
+                               extra=None if self.best is None else {"best": self.best.state()})
 
     # ------------------------------------------------------------------ per batch
     def after_batch(self, batch, scalars: dict[str, float]) -> None:
@@ -170,13 +187,22 @@ class TrainingRun:
         self.progress.update(frames, self.stats.mean_return, self.stats.survival, rate)
         if cfg.eval_every and c.frames - c.last_eval_frames >= cfg.eval_every and c.frames < cfg.frames:
             c.last_eval_frames = c.frames
-            result = evaluate(self.actor, cfg, self.algorithm, cfg.eval_episodes)
-            log_scalars(self.logger, eval_scalars(result), c.frames)
-            if result is not None:
-                self.progress.write(f"[{c.frames:,} frames] eval: " + ", ".join(
-                    f"{k} {v:.3g}" for k, v in result.summary.items()))
+            self.validate()
         if c.frames - c.last_checkpoint_frames >= cfg.checkpoint_every and c.frames < cfg.frames:
             self.save()
+
+    def validate(self) -> None:
+        """Score the current weights on the validation episodes; log it, and offer the snapshot to
+        ``best`` when the run keeps its best policy."""
+        c, cfg = self.counters, self.cfg
+        result = evaluate(self.actor, cfg, self.algorithm, cfg.eval_episodes, seed_offset=VALIDATION_SEED)
+        log_scalars(self.logger, eval_scalars(result), c.frames)
+        if result is None:
+            return
+        kept = self.best is not None and self.best.offer(policy_document(self.actor, self.meta()),
+                                                         result.summary, c.frames)
+        self.progress.write(f"[{c.frames:,} frames] validation: " + ", ".join(
+            f"{k} {v:.3g}" for k, v in result.summary.items()) + (" (best so far)" if kept else ""))
 
     # ------------------------------------------------------------------ end
     def meta(self) -> dict:
@@ -185,7 +211,12 @@ class TrainingRun:
                 "episode_seconds": self.cfg.episode_seconds}
 
     def finish(self) -> dict:
-        """Final checkpoint, policy file, TorchScript export and evaluation; returns a summary."""
+        """Final checkpoint, policy file (the best snapshot with ``keep_best``, else the last weights),
+        TorchScript export and evaluation; returns a summary."""
+        shipped = policy_document(self.actor, self.meta())
+        if self.best is not None and self.best.doc is not None:  # a run too short to validate ships its last
+            self.validate()  # the last weights compete with the snapshots
+            shipped = self.best.doc
         self.progress.close()
         wall = time.perf_counter() - self._t0
         rate = self.stats.rate(self.counters.frames)
@@ -194,14 +225,16 @@ class TrainingRun:
                    "updates": self.counters.updates, "episodes": self.counters.episodes,
                    "wall_seconds": wall, "env_steps_per_s": rate,
                    "train_return": self.stats.mean_return, "train_survival": self.stats.survival}
-        checkpoint = self.save()
+        if self.best is not None and self.best.doc is not None:
+            summary.update(selected_frames=self.best.frames, validation=self.best.summary)
+        checkpoint = self.save()  # the last weights, to continue training from
         if self.out is not None:
             summary["checkpoint"] = str(checkpoint)
-            policy = save_policy(self.out / "policy.pt", self.actor, self.meta())
+            policy = atomic_save(shipped, self.out / "policy.pt")
             summary["policy"] = str(policy)
             summary["torchscript"] = str(export_torchscript(self.out / "policy.ts", policy))
         if self.cfg.final_eval_episodes > 0:
-            self.final_eval = evaluate(self.actor, self.cfg, self.algorithm, self.cfg.final_eval_episodes)
+            self.final_eval = evaluate(shipped, self.cfg, self.algorithm, self.cfg.final_eval_episodes)
             scalars = eval_scalars(self.final_eval)
             log_scalars(self.logger, scalars, self.counters.frames)
             summary["eval"] = None if self.final_eval is None else dict(self.final_eval.summary)

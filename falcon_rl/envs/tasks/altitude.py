@@ -280,12 +280,13 @@ ALTITUDE_METRICS: tuple[Metric, ...] = (
 SPEC = register_task(TaskSpec(
     name="altitude", task=AltitudeTask, config=AltitudeConfig, gym_id="falcon_rl/Altitude-v0",
     title="Altitude acquisition and hold",
-    protocol="falcon_rl.evaluation.protocols:altitude_protocol", metrics=ALTITUDE_METRICS,
+    protocol="falcon_rl.evaluation.protocols:altitude_protocol", metrics=ALTITUDE_METRICS, select_on="rmse_m",
     controllers={"lqr": "falcon_rl.baselines.lqr:AltitudeLQR.from_env",
                  "mppi": "falcon_rl.baselines.mppi:altitude_mppi", "trim": TRIM_HOLD},
     figure="falcon_rl.viz.evaluation:plot_altitude",
     training={"ppo": {"num_envs": 256, "rollout_steps": 32, "frames": 8_000_000, "episode_seconds": 20.0,
-                      "reward_scale": 0.1},
-              "sac": {"episode_seconds": 20.0}, "td3": {"episode_seconds": 20.0}},
+                      "reward_scale": 0.1, "eval_every": 500_000, "keep_best": True},
+              "sac": {"episode_seconds": 20.0, "eval_every": 50_000, "keep_best": True},
+              "td3": {"episode_seconds": 20.0, "eval_every": 50_000, "keep_best": True}},
     defaults=TRAINING_ENV_OPTIONS,
 ))

@@ -214,7 +214,7 @@ RANGER_PPO_ENV_OPTIONS: dict = {"sigma_bank": 0.075}
 SPEC = register_task(TaskSpec(
     name="attitude", task=AttitudeTask, config=AttitudeConfig, gym_id="falcon_rl/Attitude-v0",
     title="Attitude maneuvers",
-    protocol="falcon_rl.evaluation.protocols:attitude_protocol",
+    protocol="falcon_rl.evaluation.protocols:attitude_protocol", select_on="bank_rmse_deg",
     metrics=(Metric("bank_rmse_deg", "bank RMSE", "deg"), Metric("bank_time_in_band", "in band"),
              Metric("climb_rate_rmse_mps", "hdot RMSE", "m/s"), Metric("airspeed_rmse_mps", "V RMSE", "m/s"),
              Metric("survival", "Surv.")),

@@ -61,7 +61,7 @@ class ClimbDescendTask(AltitudeTask):
 SPEC = register_task(TaskSpec(
     name="climb_descend", task=ClimbDescendTask, config=ClimbDescendConfig,
     gym_id="falcon_rl/ClimbDescend-v0", title="Climb and descend",
-    protocol="falcon_rl.evaluation.protocols:climb_descend_protocol",
+    protocol="falcon_rl.evaluation.protocols:climb_descend_protocol", select_on="ramp_rmse_m",
     metrics=(Metric("survival", "Surv."), Metric("climb_rate_rmse_mps", "hdot RMSE", "m/s"),
              Metric("ramp_rmse_m", "ramp RMSE", "m"), Metric("level_off", "Level-off"),
              Metric("level_off_time_s", "t_level", "s"), Metric("level_off_rmse_m", "level RMSE", "m"),

@@ -165,7 +165,7 @@ _FUSED_METHODS: tuple[str, ...] = ("step", "advance", "update", "reward", "obser
 SPEC = register_task(TaskSpec(
     name="path_following", task=PathFollowingTask, config=PathFollowingConfig,
     gym_id="falcon_rl/PathFollowing-v0", title="Straight-line path following",
-    protocol="falcon_rl.evaluation.protocols:path_following_protocol",
+    protocol="falcon_rl.evaluation.protocols:path_following_protocol", select_on="cross_track_rmse_m",
     metrics=(Metric("survival", "Surv."), Metric("completion", "Compl."),
              Metric("cross_track_rmse_m", "e_y RMSE", "m"), Metric("capture_time_s", "t_capture", "s"),
              Metric("course_rmse_deg", "course RMSE", "deg"), Metric("altitude_rmse_m", "h RMSE", "m")),

@@ -108,6 +108,9 @@ class TaskSpec:
     metrics: tuple[Metric, ...] = ()
     controllers: Mapping[str, Ref] = field(default_factory=dict)
     figure: Ref | None = None
+    #: The summary metric (lower is better, averaged over cases) by which a recipe with ``keep_best``
+    #: picks its policy, after survival and acquisition (see :mod:`falcon_rl.recipes.selection`).
+    select_on: str | None = None
     training: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
     airframe_training: Mapping[str, Mapping[str, Mapping[str, Any]]] = field(default_factory=dict)
     defaults: Mapping[str, Any] = field(default_factory=lambda: {"decimation": TRAINING_DECIMATION})

@@ -191,7 +191,7 @@ _FUSED_METHODS: tuple[str, ...] = ("step", "advance", "advance_reference", "upda
 SPEC = register_task(TaskSpec(
     name="trajectory", task=TrajectoryTask, config=TrajectoryConfig, gym_id="falcon_rl/Trajectory-v0",
     title="3D trajectory tracking",
-    protocol="falcon_rl.evaluation.protocols:trajectory_protocol",
+    protocol="falcon_rl.evaluation.protocols:trajectory_protocol", select_on="position_rmse_m",
     metrics=(Metric("survival", "Surv."), Metric("position_rmse_m", "RMSE", "m"),
              Metric("horizontal_rmse_m", "horiz. RMSE", "m"), Metric("vertical_rmse_m", "vert. RMSE", "m"),
              Metric("time_in_band", "in band")),
