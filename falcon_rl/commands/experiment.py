@@ -52,7 +52,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scale", choices=("quick", "paper"), default="quick",
                         help="studies: quick (shipped policies, one seed) or paper (the paper's sizes)")
     parser.add_argument("--seeds", type=positive_int, default=None,
-                        help="studies: training seeds of the learned rows (default: the scale's)")
+                        help="studies: how many training seeds (0 .. N-1) the learned rows fly "
+                             "(default: the scale's)")
     parser.add_argument("--train", action="store_true",
                         help="studies: train the learned policies that do not ship (long)")
     parser.add_argument("--runner", choices=("local", "ray"), default="local",

@@ -40,10 +40,11 @@ class PPOConfig(TrainConfig):
     #: Passes over each batch, and minibatches per pass.
     epochs: int = 4
     minibatches: int = 4
-    #: Adam learning rate, linearly annealed to 0 over ``frames`` when ``anneal_lr``.
+    #: Adam learning rate, linearly annealed to 5 % of it over ``frames`` when ``anneal_lr``.
     lr: float = 3e-4
     anneal_lr: bool = True
-    #: Discount and GAE lambda (10 ms steps: gamma 0.99 looks about 1 s ahead).
+    #: Discount and GAE lambda (gamma 0.99 looks 100 control steps ahead: 5 s at the tasks' 20 Hz
+    #: training control, 1 s at the paper's 100 Hz).
     gamma: float = 0.99
     gae_lambda: float = 0.95
     #: PPO ratio clip, entropy bonus and value-loss weight.
