@@ -12,6 +12,7 @@ import types
 import typing
 from dataclasses import fields
 
+from ..envs import task_spec
 from ..policies.format import ACTIVATIONS, MAX_LAYERS, MAX_PARAMETERS, MAX_WIDTH
 from .logging import LOGGERS
 
@@ -113,9 +114,13 @@ def check_config(cfg: object) -> None:
     batch_size, buffer_size = getattr(cfg, "batch_size", 1), getattr(cfg, "buffer_size", None)
     if buffer_size is not None and batch_size > buffer_size:
         raise ValueError(f"batch_size ({batch_size}) must not exceed buffer_size ({buffer_size})")
-    if getattr(cfg, "keep_best", False) and not (cfg.eval_every and cfg.eval_episodes):  # type: ignore[attr-defined]
-        raise ValueError("keep_best needs eval_every > 0 and eval_episodes > 0 (the validation evaluations "
-                         "it picks the policy from)")
+    if getattr(cfg, "keep_best", False):
+        if not (cfg.eval_every and cfg.eval_episodes):  # type: ignore[attr-defined]
+            raise ValueError("keep_best needs eval_every > 0 and eval_episodes > 0 (the validation "
+                             "evaluations it picks the policy from)")
+        if task_spec(cfg.task).select_on is None:  # type: ignore[attr-defined]
+            raise ValueError(f"keep_best: task {cfg.task!r} names no metric to select on "  # type: ignore[attr-defined]
+                             "(TaskSpec.select_on)")
 
 
 __all__ = ["MAX_COUNT", "MAX_ENVS", "MAX_FRAMES", "check_config"]

@@ -103,10 +103,8 @@ class TrainingRun:
         self.name = f"{algorithm}_{cfg.task}_{cfg.airframe}"
         self.history: list[dict[str, float]] = []
         self.final_eval = None
-        metric = task_spec(cfg.task).select_on
-        if cfg.keep_best and metric is None:
-            raise ValueError(f"keep_best: task {cfg.task!r} names no metric to select on (select_on)")
-        self.best = BestPolicy(metric) if cfg.keep_best else None
+        #: The best validated snapshot so far (``keep_best``; the metric is checked by check_config).
+        self.best = BestPolicy(task_spec(cfg.task).select_on or "") if cfg.keep_best else None
 
     # ------------------------------------------------------------------ files
     @property
@@ -124,9 +122,9 @@ class TrainingRun:
                 if "replay" not in doc:
                     raise FileFormatError(path, "checkpoint holds no replay buffer")
                 load_replay(self.replay, doc["replay"], path, transition_shapes(self.env))
-            if self.best is not None:
-                self.best.load(doc.get("extra", {}).get("best", {"doc": None, "score": [], "frames": -1,
-                                                                 "summary": {}}), path)
+            saved_best = doc.get("extra", {}).get("best")
+            if self.best is not None and saved_best is not None:  # None: a run that kept no best
+                self.best.load(saved_best, path)
         self.logger = make_logger(self.cfg.logger, self.out, self.name, self.cfg.to_dict())
         self.stats = EpisodeStats(frames_at_start=self.counters.frames)
         self.progress = Progress(self.cfg.frames, self.counters.frames, self.name, self.cfg.progress)
@@ -213,10 +211,11 @@ class TrainingRun:
     def finish(self) -> dict:
         """Final checkpoint, policy file (the best snapshot with ``keep_best``, else the last weights),
         TorchScript export and evaluation; returns a summary."""
-        shipped = policy_document(self.actor, self.meta())
         if self.best is not None and self.best.doc is not None:  # a run too short to validate ships its last
             self.validate()  # the last weights compete with the snapshots
             shipped = self.best.doc
+        else:
+            shipped = policy_document(self.actor, self.meta())
         self.progress.close()
         wall = time.perf_counter() - self._t0
         rate = self.stats.rate(self.counters.frames)
