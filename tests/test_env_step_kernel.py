@@ -5,6 +5,8 @@ the tensor core."""
 
 from __future__ import annotations
 
+from functools import partial
+
 import numpy as np
 import pytest
 import torch
@@ -13,8 +15,9 @@ from tensordict import TensorDict
 from falcon_rl.envs import make_env
 from falcon_rl.envs.gym import CoreAircraftEnv
 from falcon_rl.envs.tasks import TERMINATION_CODE, AltitudeTask
-from falcon_rl.physics import Simulator
+from falcon_rl.physics import Simulator, warp_backend
 from falcon_rl.physics import state as S
+from falcon_rl.physics._warp import init_warp
 
 FUSED_TASKS = ("altitude", "attitude", "path_following", "trajectory", "climb_descend")
 N = 16
@@ -166,6 +169,46 @@ def test_the_crash_state_in_the_kernel_equals_its_torch_twin() -> None:
         assert torch.equal(kernel.x, twin.x) and torch.equal(kernel.crashed, twin.crashed)
     assert kernel.crashed.tolist() == [True] * 3 + [False] * 3
     assert (kernel.x[:3, S.DOWN_INDEX] == 0).all() and (kernel.x[:3, S.VELOCITY] == 0).all()
+
+
+def _replays_graph(replay: object) -> bool:
+    return isinstance(replay, partial) and replay.func is init_warp().capture_launch
+
+
+@pytest.mark.parametrize("turbulence", [None, "moderate"])
+def test_a_captured_cpu_graph_replays_what_the_recorded_launch_does(monkeypatch: pytest.MonkeyPatch,
+                                                                    turbulence: str | None) -> None:
+    """One CPU slice replays as a captured Warp CPU graph (engine step, derived state, the one-launch env
+    step): bit for bit what replaying the recorded launches does, with the sub-step count changing
+    between engine steps (the graph is captured again) and terminations and resets in between."""
+    def run(captured: bool) -> tuple[list[torch.Tensor], object]:
+        if not captured:
+            monkeypatch.setattr(warp_backend, "capture_cpu_graph", lambda launch: None)
+        env = make_env("altitude", "volantex_ranger", num_envs=3, backend="warp", seed=4, lean=True,
+                       turbulence=turbulence)
+        env.reset()
+        generator, seen = torch.Generator().manual_seed(8), []
+        for step in range(30):
+            if step == 12:
+                _dive(env)
+            out = env.step_tensors(_actions(step, 2, generator)[:3])
+            derived = env.sim.engine.derived().clone()
+            seen += [out.observation, out.reward, out.reason, env.sim.x.clone(), derived]
+            env.sim.step(env.sim.command, substeps=1 + step % 3)  # the engine's own launch, re-captured
+            done = (out.reason > 0) | out.truncated
+            if bool(done.any()):
+                env.reset_tensors(done)
+        monkeypatch.undo()
+        return seen, env
+
+    graph, env = run(captured=True)
+    if not _replays_graph(env.env_stepper()._replay):
+        pytest.skip("this Warp release has no CPU graphs")
+    assert _replays_graph(env.sim.engine._step_replay) and _replays_graph(env.sim.engine._evaluate_replay)
+    launches, plain = run(captured=False)
+    assert not _replays_graph(plain.env_stepper()._replay)
+    for index, (one, two) in enumerate(zip(graph, launches, strict=True)):
+        assert torch.equal(one, two), index
 
 
 @pytest.mark.parametrize("task", ["altitude", "attitude"])

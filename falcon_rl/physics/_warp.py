@@ -48,6 +48,24 @@ def init_warp() -> Any:
     return wp
 
 
+def capture_cpu_graph(launch: Any) -> Any | None:
+    """``launch`` (a launch recorded with ``record_cmd=True`` on the CPU) captured as a Warp CPU graph,
+    for ``wp.capture_launch``: the graph replays it in C++ with the argument struct built once, about
+    5 us less per call than ``launch.launch()``, which builds it again in Python (what a one-env step
+    pays). Capturing records and does not run the launch. None where this Warp cannot capture on the
+    CPU (releases before CPU graphs) or a capture is already open: replay the launch itself then."""
+    warp = init_warp()
+    try:
+        warp.capture_begin(device="cpu")
+    except (RuntimeError, ValueError, TypeError, NotImplementedError):
+        return None
+    try:
+        launch.launch()
+    finally:
+        graph = warp.capture_end(device="cpu")
+    return graph
+
+
 def warp_func(fn: Callable[..., Any]) -> Any:
     """``@wp.func`` when Warp is available, else a placeholder that raises when called."""
     if wp is not None:

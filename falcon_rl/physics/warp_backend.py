@@ -26,13 +26,15 @@ from __future__ import annotations
 
 import itertools
 import os
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
+from functools import partial
 from queue import Empty, SimpleQueue
 from typing import Any
 
 import torch
 
-from ._warp import init_warp
+from ._warp import capture_cpu_graph, init_warp
 from .derived import DERIVED_WIDTH
 from .engine import Engine, EngineSetup
 from .params import bind_warp_params
@@ -105,7 +107,7 @@ class WarpEngine(Engine):
     _RUNTIME = ("_wp", "_kernels", "device", "_torch_device", "_is_cuda", "_key", "_launches",
                 "_evaluate_launches", "_substeps", "_evaluation", "_stream", "threads", "slices",
                 "_params_object", "_params", "_params_ptrs", "_turb_placeholders", "_turb_object",
-                "_stop", "generation", "_views")
+                "_stop", "generation", "_views", "_step_replay", "_evaluate_replay")
 
     @classmethod
     def placement(cls, num_envs: int, device: torch.device, dtype: torch.dtype
@@ -139,6 +141,8 @@ class WarpEngine(Engine):
         self._key: tuple[Any, ...] = ()
         self._launches: list[Any] = []
         self._evaluate_launches: list[Any] = []
+        self._step_replay: Callable[[], None] = lambda: None
+        self._evaluate_replay: Callable[[], None] = lambda: None
         self._substeps = 1
         self._stop = False
         #: Bumped by every :meth:`rebind`: a kernel bound to :meth:`bind_views` binds again when it moves.
@@ -220,6 +224,8 @@ class WarpEngine(Engine):
                                              inputs=[*evaluate_inputs, offset], device=self.device,
                                              record_cmd=True)
                                    for offset, count in self.slices]
+        self._step_replay = self.replayer(self._launches)
+        self._evaluate_replay = self.replayer(self._evaluate_launches)
         if self._is_cuda:
             self._stream = wp.stream_from_torch(self._torch_device)
         self._key = self._binding_key()
@@ -244,8 +250,9 @@ class WarpEngine(Engine):
                 launch.set_param_by_name("substeps", substeps)
                 launch.set_param_by_name("stop_at_ground", int(stop_at_ground))
             self._substeps, self._stop = substeps, stop_at_ground
+            self._step_replay = self.replayer(self._launches)
         self.bump_turbulence_counter(substeps)
-        self.run(self._launches)
+        self._step_replay()
 
     def bump_turbulence_counter(self, substeps: int) -> None:
         """Advance the step counter of the Warp noise streams by ``substeps`` before a launch of that many
@@ -258,7 +265,7 @@ class WarpEngine(Engine):
         """[N, DERIVED_WIDTH] derived state (engine-owned buffer, overwritten by the next call):
         one kernel launch per CPU slice."""
         self.check_binding()
-        self.run(self._evaluate_launches)
+        self._evaluate_replay()
         return self._evaluation
 
     def split(self, substeps: int) -> tuple[int, list[tuple[int, int]]]:
@@ -269,6 +276,17 @@ class WarpEngine(Engine):
         threads = self.setup.options.get("cpu_threads")
         return (cpu_thread_count(self.num_envs, threads, substeps),
                 cpu_slices(self.num_envs, threads, substeps))
+
+    def replayer(self, launches: list[Any], threads: int | None = None) -> Callable[[], None]:
+        """A call that replays ``launches`` as :meth:`run` does. A single CPU launch (one slice: small
+        batches) replays as a captured Warp CPU graph where this Warp has them
+        (:func:`~falcon_rl.physics._warp.capture_cpu_graph`), which keeps the launch's argument packing
+        out of a one-env step. Make it again after changing a launch's parameters."""
+        if len(launches) == 1 and not self._is_cuda:
+            graph = capture_cpu_graph(launches[0])
+            if graph is not None:
+                return partial(self._wp.capture_launch, graph)
+        return partial(self.run, launches, threads)
 
     def run(self, launches: list[Any], threads: int | None = None) -> None:
         """Replay one launch, or the CPU chunks' launches from a queue that ``threads`` threads (this

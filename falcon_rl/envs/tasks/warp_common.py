@@ -20,6 +20,7 @@ A task kernel has the signature ``(sim: SimulatorViews, buf: <Buffers>, c: <Cons
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import torch
@@ -268,6 +269,7 @@ class FusedStep:
         self.action = torch.zeros(n, task.action_dim, device=device, dtype=torch.float32)
         self.device = warp_device(device)
         self._launches: list[Any] = []
+        self._replay: Callable[[], None] = lambda: None
         self._inputs: list[Any] = []
         self._key: tuple[int, ...] = ()
 
@@ -306,6 +308,9 @@ class FusedStep:
         self._launches = [wp.launch(self.kernel, dim=count, inputs=[*self._inputs, offset],
                                     device=self.device, record_cmd=True)
                           for offset, count in self.task.sim.engine.slices]
+        # The engine replays them as its own: on torch's current CUDA stream, the CPU slices on its
+        # threads, one CPU slice as a captured graph.
+        self._replay = self.task.sim.engine.replayer(self._launches)
         self._key = self.binding_key()
 
     def draw(self) -> None:
@@ -316,9 +321,7 @@ class FusedStep:
         self.ensure_bound()
         self.action.copy_(action)
         self.draw()
-        # The engine replays them as its own: on torch's current CUDA stream, or the CPU slices on its
-        # threads.
-        self.task.sim.engine.run(self._launches)
+        self._replay()
         return self.observation, self.reward, self.reason
 
 

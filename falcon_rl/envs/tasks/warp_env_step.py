@@ -27,6 +27,7 @@ No ``from __future__ import annotations`` here: Warp reads the kernel factory's 
 the task's struct types through the closure.
 """
 
+from collections.abc import Callable
 from typing import Any, Protocol
 
 import numpy as np
@@ -188,8 +189,11 @@ class FusedEnvStep:
         self.flags = torch.zeros(3, n, 1, device=device, dtype=torch.bool)
         self.truncated = self.flags[1].view(n)
         self.non_finite = torch.zeros(n, device=device, dtype=torch.bool)
+        #: [N, 1] views of the task step's reward and reason (a TorchRL step's columns, cloned as they are).
+        self.reward_column, self.reason_column = task_step.reward.view(n, 1), task_step.reason.view(n, 1)
         self.channels = torch.as_tensor(task.action_channels, device=device, dtype=torch.int32)
         self._launches: list[Any] = []
+        self._replay: Callable[[], None] = lambda: None
         self._threads = 1
         self._key: tuple[Any, ...] = ()
 
@@ -225,6 +229,7 @@ class FusedEnvStep:
         self._launches = [wp.launch(self.kernel, dim=count, inputs=[*inputs, offset],
                                     device=engine.device, record_cmd=True)
                           for offset, count in slices]
+        self._replay = engine.replayer(self._launches, self._threads)
         self._key = self._binding_key()
 
     def launch(self) -> None:
@@ -233,9 +238,8 @@ class FusedEnvStep:
         if not self._launches or self._binding_key() != self._key:
             self.bind()
         self.task_step.draw()
-        engine = self.env.sim.engine
-        engine.bump_turbulence_counter(self.env.config.decimation)
-        engine.run(self._launches, self._threads)
+        self.env.sim.engine.bump_turbulence_counter(self.env.config.decimation)
+        self._replay()
 
     def __call__(self, action: torch.Tensor) -> tuple[torch.Tensor, ...]:
         """(observation [N, D], reward [N], reason [N] long, truncated [N], non_finite [N]) of the step
@@ -250,11 +254,11 @@ class FusedEnvStep:
         caller may keep them): ``observation`` [N, D], ``reward`` [N, 1], ``termination_reason`` [N, 1]
         long, ``terminated``, ``truncated``, ``done`` [N, 1] bool; five copies and no other operation."""
         self(action)
-        t, n = self.task_step, self.env.config.num_envs
         terminated, truncated, done = self.flags.clone().unbind(0)
-        return {"observation": t.observation.clone(), "termination_reason": t.reason.clone().view(n, 1),
+        return {"observation": self.task_step.observation.clone(),
+                "termination_reason": self.reason_column.clone(),
                 "terminated": terminated, "truncated": truncated, "done": done,
-                "reward": t.reward.clone().view(n, 1)}
+                "reward": self.reward_column.clone()}
 
     def numpy_views(self) -> dict[str, np.ndarray]:
         """NumPy views (CPU only) of ``action`` [N, A] (write the step's action here), ``observation``
