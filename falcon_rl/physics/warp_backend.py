@@ -15,7 +15,8 @@ On the CPU a Warp kernel runs serially on one core; batches of at least ``2 * MI
 envs are split into contiguous chunks (``CHUNKS_PER_THREAD`` per thread), one recorded launch per
 chunk, which parallel threads take from a shared queue (a CPU launch is a ctypes call, which
 releases the GIL). ``Simulator(warp_cpu_threads=...)`` overrides the default of one thread per
-available core.
+available core. A launch that runs as one CPU slice replays as a captured Warp CPU graph where Warp has
+them (:meth:`WarpEngine.replayer`): its arguments are packed once, not on every step.
 With turbulence on, the kernel also advances the Dryden filters (``Engine.turbulence``) at the start
 of each sub-step; the step counter of its noise streams is a device tensor that torch bumps by the
 number of sub-steps before each launch (sub-step k of the launch uses counter - substeps + 1 + k, so
