@@ -53,17 +53,22 @@ def capture_cpu_graph(launch: Any) -> Any | None:
     for ``wp.capture_launch``: the graph replays it in C++ with the argument struct built once, about
     5 us less per call than ``launch.launch()``, which builds it again in Python (what a one-env step
     pays). Capturing records and does not run the launch. None where this Warp cannot capture on the
-    CPU (releases before CPU graphs) or a capture is already open: replay the launch itself then."""
+    CPU (releases before CPU graphs), that cannot record this launch, or when a capture is already open:
+    replay the launch itself then."""
     warp = init_warp()
     try:
         warp.capture_begin(device="cpu")
     except (RuntimeError, ValueError, TypeError, NotImplementedError):
         return None
+    recorded = False
     try:
         launch.launch()
+        recorded = True
+    except RuntimeError:  # a launch this Warp cannot record (e.g. one without its argument list)
+        pass
     finally:
         graph = warp.capture_end(device="cpu")
-    return graph
+    return graph if recorded else None
 
 
 def warp_func(fn: Callable[..., Any]) -> Any:
