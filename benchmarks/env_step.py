@@ -10,7 +10,11 @@ shared machine hits every case alike):
 - ``physics checked``: the same with the input checks on, as the env builds its simulator;
 - ``torchrl floor``: a trivial TorchRL ``EnvBase`` with the lean env's keys and widths (observation,
   termination_reason, action, reward and done flags) whose ``_step`` returns preallocated tensors in
-  an unchecked TensorDict: what TorchRL itself costs;
+  an unchecked TensorDict: what TorchRL itself costs. A rollout of it records the last step's values
+  at every step (the same tensors each time), so no env that a rollout can keep does this;
+- ``torchrl floor (new outputs)``: the same trivial env whose ``_step`` returns new tensors (copies of
+  its preallocated ones), as every env whose steps a rollout or a replay buffer keeps must: the floor
+  of a usable env;
 - ``env``, ``env lean``, ``env unfused``, ``env lean unfused``: the task env
   (``make_env(task, airframe, num_envs=N, backend, seed=0, decimation=d, lean=, fused=)``).
 
@@ -18,7 +22,7 @@ Every env (the floor too) is stepped by ``falcon_rl.bench.env_stepper``: ``step_
 zero action, as a rollout does. Each case gets ``--warmup`` untimed steps, then one timed block per
 round (``--trials`` rounds, the case order rotated each round); a block is ``--steps`` steps or more,
 enough to last ``--block-s``. Reported: median ms per env step, min-max over the blocks, env-steps/s,
-and the ratios to the physics floor and to the TorchRL floor (of the medians; in brackets of the fastest
+and the ratios to the physics floor and to the two TorchRL floors (of the medians; in brackets of the fastest
 blocks, the least disturbed on a loaded machine). ``--profile`` prints the
 top-20 functions by cumulative time (cProfile) of the 1-env ``env`` step.
 """
@@ -48,11 +52,13 @@ from falcon_rl import make_env
 from falcon_rl.bench import BenchCase, _cpu_name, _time_blocks, env_stepper, plot
 from falcon_rl.envs.tasks import TERMINATION_REASONS
 
-#: Case label -> (kind, make_env options); kind in "physics", "physics checked", "torchrl", "env".
+#: Case label -> (kind, make_env options); kind in "physics", "physics checked", "torchrl", "torchrl new",
+#: "env".
 CASES: dict[str, tuple[str, dict[str, bool]]] = {
     "physics": ("physics", {}),
     "physics checked": ("physics checked", {}),
     "torchrl floor": ("torchrl", {}),
+    "torchrl floor (new outputs)": ("torchrl new", {}),
     "env": ("env", {"lean": False, "fused": True}),
     "env lean": ("env", {"lean": True, "fused": True}),
     "env unfused": ("env", {"lean": False, "fused": False}),
@@ -71,15 +77,20 @@ class EnvStepCase(BenchCase):
     ratio_to_physics_min: float | None = None
     ratio_to_torchrl: float | None = None
     ratio_to_torchrl_min: float | None = None
+    ratio_to_torchrl_new: float | None = None
+    ratio_to_torchrl_new_min: float | None = None
 
 
 class TrivialEnv(EnvBase):
     """Batch [N] env with the lean task env's keys: an [N, D] observation, an [N, 1] long
     termination_reason, [N, A] action in [-1, 1], [N, 1] reward and done flags, whose ``_step`` and
-    ``_reset`` return preallocated tensors (no per-step work of its own)."""
+    ``_reset`` return preallocated tensors (no per-step work of its own), or with ``new_outputs`` new
+    copies of them at every step (what a rollout can keep)."""
 
-    def __init__(self, num_envs: int, obs_dim: int, action_dim: int, device: str) -> None:
+    def __init__(self, num_envs: int, obs_dim: int, action_dim: int, device: str,
+                 new_outputs: bool = False) -> None:
         super().__init__(device=device, batch_size=torch.Size([num_envs]))
+        self.new_outputs = new_outputs
         n = num_envs
         self.observation_spec = Composite(
             observation=Unbounded(shape=(n, obs_dim), device=device),
@@ -102,7 +113,8 @@ class TrivialEnv(EnvBase):
 
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
         # Unchecked, as TorchRL's own Gym-like envs and the lean FixedWingEnv build their outputs.
-        return TensorDict._new_unsafe(dict(self._out), batch_size=self.batch_size, device=self.device)
+        out = {k: v.clone() for k, v in self._out.items()} if self.new_outputs else dict(self._out)
+        return TensorDict._new_unsafe(out, batch_size=self.batch_size, device=self.device)
 
     def _set_seed(self, seed: int | None) -> None:
         """Nothing to seed."""
@@ -124,9 +136,9 @@ def build_steppers(args: argparse.Namespace, n: int) -> tuple[dict[str, Callable
                 sim.check_inputs = kind == "physics checked"
                 command = sim.command.clone()
                 steppers[label] = lambda sim=sim, command=command: sim.step(command, substeps=decimation)
-            elif kind == "torchrl":
+            elif kind.startswith("torchrl"):
                 floor = TrivialEnv(n, base.observation_spec["observation"].shape[-1],
-                                   base.action_spec.shape[-1], args.device)
+                                   base.action_spec.shape[-1], args.device, new_outputs=kind == "torchrl new")
                 steppers[label] = env_stepper(floor)
             else:
                 steppers[label] = env_stepper(make_env(args.task, args.airframe, **common, **options))
@@ -138,8 +150,8 @@ def build_steppers(args: argparse.Namespace, n: int) -> tuple[dict[str, Callable
 def _new_case(args: argparse.Namespace, label: str, n: int, decimation: int) -> EnvStepCase:
     """An untimed case: target "simulator", "torchrl" or "env"; the floor's backend is the trivial env."""
     kind = CASES[label][0]
-    target = "simulator" if kind.startswith("physics") else kind
-    backend = "trivial EnvBase" if kind == "torchrl" else args.backend
+    target = "simulator" if kind.startswith("physics") else kind.split()[0]
+    backend = "trivial EnvBase" if kind.startswith("torchrl") else args.backend
     return EnvStepCase(target, backend, args.device, n, 0, args.trials, label=label, decimation=decimation)
 
 
@@ -172,8 +184,9 @@ def time_cases(args: argparse.Namespace, n: int, bar: tqdm) -> list[EnvStepCase]
 
 
 def _set_ratios(cases: dict[str, EnvStepCase]) -> None:
-    """Each timed case's ratios to the physics floor and to the TorchRL floor (where those were timed)."""
-    for name, ref_label in (("physics", "physics"), ("torchrl", "torchrl floor")):
+    """Each timed case's ratios to the physics floor and to the TorchRL floors (where those were timed)."""
+    for name, ref_label in (("physics", "physics"), ("torchrl", "torchrl floor"),
+                            ("torchrl_new", "torchrl floor (new outputs)")):
         ref = cases.get(ref_label)
         if ref is None or ref.error is not None:
             continue
@@ -185,20 +198,21 @@ def _set_ratios(cases: dict[str, EnvStepCase]) -> None:
 
 def format_table(doc: dict[str, Any]) -> str:
     """Markdown table of a run: one row per case and env count; ratios "median (fastest blocks)"."""
-    lines = ["| case | envs | ms/step | min-max ms | env-steps/s | x physics | x TorchRL floor |",
-             "|---|---:|---:|---|---:|---:|---:|"]
+    lines = ["| case | envs | ms/step | min-max ms | env-steps/s | x physics | x TorchRL floor "
+             "| x floor (new outputs) |", "|---|---:|---:|---|---:|---:|---:|---:|"]
 
     def ratio(c: dict[str, Any], name: str) -> str:
-        median, fastest = c[f"ratio_to_{name}"], c[f"ratio_to_{name}_min"]
+        median, fastest = c.get(f"ratio_to_{name}"), c.get(f"ratio_to_{name}_min")
         return "-" if median is None else f"{median:.2f} ({fastest:.2f})"
 
     for c in doc["cases"]:
         if c["error"]:
-            lines.append(f"| {c['label']} | {c['num_envs']:,} | error: {c['error']} | | | | |")
+            lines.append(f"| {c['label']} | {c['num_envs']:,} | error: {c['error']} | | | | | |")
             continue
         ms = [c[k] * 1e3 for k in ("median_s", "min_s", "max_s")]
         lines.append(f"| {c['label']} | {c['num_envs']:,} | {ms[0]:.3f} | {ms[1]:.3f}-{ms[2]:.3f} | "
-                     f"{c['env_steps_per_s']:,.0f} | {ratio(c, 'physics')} | {ratio(c, 'torchrl')} |")
+                     f"{c['env_steps_per_s']:,.0f} | {ratio(c, 'physics')} | {ratio(c, 'torchrl')} | "
+                     f"{ratio(c, 'torchrl_new')} |")
     return "\n".join(lines)
 
 

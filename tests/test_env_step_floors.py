@@ -1,0 +1,61 @@
+"""The env-step benchmark's TorchRL floors (``benchmarks/env_step.py``): what each one's rollout keeps.
+
+The floor that hands out its preallocated tensors is TorchRL's own cost, but a rollout of it records
+the last step's values at every step; the floor with new outputs keeps every step, as a usable env must.
+"""
+
+from __future__ import annotations
+
+import functools
+import importlib.util
+import sys
+from dataclasses import asdict
+from pathlib import Path
+
+import torch
+from tensordict import TensorDict
+
+BENCHMARK = Path(__file__).resolve().parents[1] / "benchmarks" / "env_step.py"
+
+
+@functools.cache
+def _benchmark_module():
+    spec = importlib.util.spec_from_file_location("env_step_benchmark", BENCHMARK)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # its dataclasses look their module up
+    spec.loader.exec_module(module)
+    return module
+
+
+def _counting_rollout(new_outputs: bool) -> torch.Tensor:
+    """Observations [T] of a 4-step rollout of a floor whose observation counts the steps."""
+    bench = _benchmark_module()
+    env = bench.TrivialEnv(1, 3, 2, "cpu", new_outputs=new_outputs)
+    step = env._step
+
+    def counting(td: TensorDict) -> TensorDict:
+        env._out["observation"] += 1.0
+        return step(td)
+
+    env._step = counting
+    return env.rollout(4)["next", "observation"][0, :, 0]
+
+
+def test_the_preallocated_floor_aliases_its_steps_and_the_new_outputs_floor_keeps_them():
+    assert _counting_rollout(new_outputs=False).tolist() == [4.0, 4.0, 4.0, 4.0]
+    assert _counting_rollout(new_outputs=True).tolist() == [1.0, 2.0, 3.0, 4.0]
+
+
+def test_ratios_to_both_floors_are_in_the_table():
+    bench = _benchmark_module()
+    cases = {label: bench.EnvStepCase("env", "warp", "cpu", 1, 10, 1, label=label)
+             for label in ("physics", "torchrl floor", "torchrl floor (new outputs)", "env lean")}
+    for case, seconds in zip(cases.values(), (1e-5, 4e-5, 5e-5, 7e-5), strict=True):
+        case.finish([seconds * 10])
+    bench._set_ratios(cases)
+    lean = cases["env lean"]
+    assert abs(lean.ratio_to_torchrl - 7 / 4) < 1e-12 and abs(lean.ratio_to_torchrl_new - 7 / 5) < 1e-12
+    table = bench.format_table({"cases": [asdict(c) for c in cases.values()]})
+    row = "| env lean | 1 | 0.070 | 0.070-0.070 | 14,286 | 7.00 (7.00) | 1.75 (1.75) | 1.40 (1.40) |"
+    assert row in table
