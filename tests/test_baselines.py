@@ -102,6 +102,43 @@ def test_mppi_samples_from_the_env_seed_unless_given_its_own():
     assert torch.equal(first_noise(3, seed=7), first_noise(4, seed=7))
 
 
+def test_mppi_held_samples_hold_the_plan_from_a_random_step_on():
+    """``hold_fraction``: the last samples follow the plan up to a random step and hold it from there,
+    plus noise; the first of them is the plan's first command held without noise; sample 0 is the plan.
+    Without held samples the candidates (and the generator's draws) are those of the plain sampler."""
+    env = make_env("attitude", "airship_v7", num_envs=2, seed=3, maneuver="figure8", decimation=1)
+    plan = torch.linspace(-0.5, 0.5, 2 * 40 * 4).reshape(2, 40, 4)  # a plan that changes at every step
+
+    def candidates(fraction: float, sigma: float) -> torch.Tensor:
+        config = MPPIConfig(samples=16, hold_fraction=fraction, noise_sigma=(sigma,) * 4, seed=5)
+        policy = MPPI(env, config, tracks="attitude")
+        assert policy.horizon == 40
+        return policy._candidates(plan)
+
+    held = candidates(0.25, 0.0)  # no noise: the bases themselves
+    assert held.shape == (2, 16, 40, 4)
+    assert torch.equal(held[:, :12], plan[:, None].expand(2, 12, 40, 4))  # the others: the plan
+    assert torch.equal(held[:, 12], plan[:, :1].expand(2, 40, 4))  # the first command, held
+    starts = set()
+    for sample in held[0, 13:]:  # the plan up to a step, constant after it
+        off = (sample != plan[0]).any(-1)
+        start = int(off.nonzero()[0]) - 1 if off.any() else 39
+        assert torch.equal(sample[:start + 1], plan[0, :start + 1])
+        assert torch.equal(sample[start:], plan[0, start].expand(40 - start, 4))
+        starts.add(start)
+    assert len(starts) > 1  # drawn, not one fixed step
+    noisy = candidates(0.25, 0.02)
+    assert torch.equal(noisy[:, 0], plan) and torch.equal(noisy[:, 12], held[:, 12])
+    assert not torch.equal(noisy[:, 13:], held[:, 13:])
+    plain = MPPI(env, MPPIConfig(samples=16, noise_sigma=(0.02,) * 4, seed=5), tracks="attitude")
+    expected = (plan[:, None] + plain._smooth_noise(2, 16, 40, 4)).clamp(-1.0, 1.0)
+    expected[:, 0] = plan
+    assert torch.equal(candidates(0.0, 0.02), expected)
+    for bad in (-0.1, 1.0, float("nan"), "0.5"):
+        with pytest.raises(ValueError, match="hold_fraction"):
+            MPPI(env, MPPIConfig(samples=4, hold_fraction=bad), tracks="attitude")
+
+
 def test_mppi_reads_the_maneuver_stream_ahead():
     env = make_env("attitude", "volantex_ranger", num_envs=2, seed=0, maneuver="s_turn", decimation=1)
     policy = MPPI(env, MPPIConfig(samples=4, horizon_seconds=1.0, plan_dt=0.1))

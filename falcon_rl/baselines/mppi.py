@@ -19,6 +19,15 @@ airspeed errors, the sideslip (coordinated turns) and, for a known stream, the e
 profile that its climb-rate commands integrate to (an integral term), against the maneuver's
 command stream read ahead over the horizon (the current commands held for streams not known ahead).
 
+Held samples (``hold_fraction``). The plan's tail is flown only after many replans, and the weighted
+mean of samples that differ little there lets it random-walk. On the Airship V7's figure-8 the tail
+drifted into a predicted spiral dive (the horizon's last bank -50 deg against +22 commanded, costs 100x
+the steady ones) that then ranked the samples, and two of five episodes of a draw dived into the ground.
+Some samples drawn around the plan held constant from a random step of the horizon on (an airframe in a
+steady turn holds nearly constant commands) keep a sane tail among the candidates, while the others
+keep the plan's own anticipation of a coming command change (the attitude planner's setting; the
+altitude planner's is 0).
+
 Tuning notes. The sampling noise must stay small next to the commands that fly the airframe: with
 (0.03, 0.05, 0.05, 0.15) the Navion (53 m/s, 3 s throttle lag) drifted up to 3 m off its target
 because the weighted mean of few good samples random-walks the plan; (0.01, 0.02, 0.02, 0.08)
@@ -72,6 +81,10 @@ class MPPIConfig:
     effort_scale: float = 0.25
     #: Spacing of the noise knots (the noise is linear between them), s.
     noise_knot_seconds: float = 0.25
+    #: Fraction of the samples drawn around the shifted plan held constant from a random step of the
+    #: horizon on (one of them: its first command, held over the whole horizon, without noise); the
+    #: others around the shifted plan. See "Held samples" in the module docstring.
+    hold_fraction: float = 0.0
     penalty: float = 1e3
     #: RK4 substeps keep |lambda| dt of the fastest cruise mode below this (2.79 is RK4's limit).
     stability_margin: float = 2.0
@@ -117,6 +130,8 @@ class MPPI(TensorDictModuleBase):
             raise ValueError(f"replan_seconds ({cfg.replan_seconds}) must be a whole number of planning "
                              f"steps of plan_dt ({cfg.plan_dt})")
         self.shift = self.replan_every // self.plan_hold
+        if not (isinstance(cfg.hold_fraction, int | float) and 0.0 <= cfg.hold_fraction < 1.0):
+            raise ValueError(f"hold_fraction must be a number in [0, 1), got {cfg.hold_fraction!r}")
         backend = "warp" if env.config.backend == "warp" else "torch"
         self.substeps = stable_substeps(env.sim.airframe, cfg.plan_dt, cfg.stability_margin)
         self.planner = Simulator(env.sim.airframe, self.n * self.k, backend=backend, device=env.device,
@@ -215,9 +230,7 @@ class MPPI(TensorDictModuleBase):
         a = len(self.channels)
         shifted = torch.cat([self.plan[:, self.shift:], self.plan[:, -1:].expand(n, min(self.shift, h), a)],
                             dim=1)[:, :h]
-        noise = self._smooth_noise(n, k, h, a)
-        noise[:, 0] = 0.0  # keep the warm-started plan itself among the candidates
-        candidates = (shifted[:, None] + noise).clamp(-1.0, 1.0)  # [N, K, H, A]
+        candidates = self._candidates(shifted)  # [N, K, H, A]
         self.planner.x.copy_(self._initial_state(td).repeat_interleave(k, dim=0))
         command = self.trim_command.expand(n * k, S.NUM_CONTROLS).clone()
         ref = self._references(td)
@@ -237,6 +250,26 @@ class MPPI(TensorDictModuleBase):
         self.plan = torch.where(rows[:, None, None], new_plan, self.plan)
         self.planning_seconds.append(time.perf_counter() - t0)
         self.planning_cpu_seconds.append(time.process_time() - c0)
+
+    def _candidates(self, shifted: torch.Tensor) -> torch.Tensor:
+        """The K sampled control sequences [N, K, H, A] around the shifted plan ``shifted`` [N, H, A],
+        clipped to [-1, 1]: sample 0 is the plan itself; the last ``hold_fraction`` of them are drawn
+        around the plan held constant from a random step on (the first of those is the plan's first
+        command held over the whole horizon, without noise); the rest around the plan."""
+        n, h, a = shifted.shape
+        k = self.k
+        noise = self._smooth_noise(n, k, h, a)
+        noise[:, 0] = 0.0  # keep the warm-started plan itself among the candidates
+        base = shifted[:, None].expand(n, k, h, a)
+        held = min(k - 1, round(self.config.hold_fraction * k))
+        if held:
+            start = torch.randint(0, h, (held,), generator=self.generator, device=shifted.device)
+            start[0] = 0
+            index = torch.minimum(torch.arange(h, device=shifted.device)[None, :], start[:, None])
+            base = base.clone()
+            base[:, k - held:] = shifted[:, index]  # [N, held, H, A]
+            noise[:, k - held] = 0.0
+        return (base + noise).clamp(-1.0, 1.0)
 
     def _smooth_noise(self, n: int, k: int, h: int, a: int) -> torch.Tensor:
         """Gaussian noise [N, K, H, A] drawn on knots every ``noise_knot_seconds`` and interpolated
@@ -300,7 +333,13 @@ def altitude_mppi(env: FixedWingEnv, config: MPPIConfig | None = None) -> MPPI:
 #: (first 40 s, one draw) the bank RMSE went from 1.09 / 1.17 / 0.70 / 0.37 deg to 0.83 / 0.87 /
 #: 0.37 / 0.27 deg, airspeed RMSE 0.19-0.50 -> 0.11-0.30 m/s, climb-rate RMSE 0.04-0.12 ->
 #: 0.07-0.14 m/s; the bank scale alone (1 deg) cut the bank error as much but tripled the airspeed error.
-ATTITUDE_MPPI = {"samples": 64, "bank_scale": math.radians(1.5), "airspeed_scale": 0.5}
+#: One sample in 16 is held (``hold_fraction``, see the module docstring): on the V7's figure-8 (5 episodes
+#: a draw, whole stream) the draw that lost 2 of 5 episodes to a spiral dive (survival 0.6, bank RMSE
+#: 2.26 deg) flew 0.89 deg with survival 1; on the Ranger (draw 0) circle / figure-8 went from 0.91 / 1.06
+#: to 0.98 / 1.05 deg. With one sample in 8 the V7 flew 0.94 deg and the Ranger 1.02 / 1.20 deg; with one
+#: in 4 (all held over the whole horizon) the V7's figure-8 lagged its bank reversals (1.44 deg).
+ATTITUDE_MPPI = {"samples": 64, "bank_scale": math.radians(1.5), "airspeed_scale": 0.5,
+                 "hold_fraction": 0.0625}
 
 
 def attitude_mppi(env: FixedWingEnv, config: MPPIConfig | None = None) -> MPPI:
