@@ -218,8 +218,10 @@ RANGER_PPO_ENV_OPTIONS: dict = {"sigma_bank": 0.075}
 #: 1.28 / 3.77 / 0.86 deg and the executor of seed 0 lost 13 % and 45 % of its episodes in medium and
 #: severe turbulence (robustness grid, paper scale). In turbulence seeds 0 and 1 reach 0.46-0.86 deg in
 #: calm air with their last weights and survive every cell of the grid; seed 2's last weights reach
-#: 1.24-1.59 deg, its 3 M-frame snapshot 0.30-0.85 deg but survives 0.95 / 0.49 of the episodes in medium /
-#: severe turbulence (per-seed numbers in ``falcon_rl/policies/README.md``).
+#: 1.24-1.59 deg, its 3 M-frame snapshot 0.30-0.85 deg but flies below its airspeed command and stalls in
+#: gusts (survival 0.95 / 0.49 in medium / severe turbulence). Seed 2 ships trained with the airspeed term
+#: weighted 1.0 and sigma 10 % of cruise (its own command): 0.24-0.57 deg, survival 1 in every cell
+#: (per-seed numbers in ``falcon_rl/policies/README.md``).
 V7_PPO_ENV_OPTIONS: dict = {"turbulence": "medium"}
 
 SPEC = register_task(TaskSpec(
