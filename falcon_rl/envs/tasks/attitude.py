@@ -212,17 +212,16 @@ _TRAINING = {"eval_episodes": 4, "final_eval_episodes": 25}
 #: The Ranger's shipped seed 1 adds medium turbulence to these options (its calm-trained executor lost a
 #: few robustness episodes in turbulence; ``falcon_rl/policies/README.md``).
 RANGER_PPO_ENV_OPTIONS: dict = {"sigma_bank": 0.075}
-#: The Airship V7's PPO trains in medium Dryden turbulence (the task's own reward; the protocols fly calm
-#: air) and ships the best of its validations every 1 M frames (``keep_best``; 4 held-out episodes per
-#: maneuver, ranked by survival, then mean bank RMSE). Trained in calm air, seed 1 settled at bank RMSE 1.33 /
-#: 1.28 / 3.77 / 0.86 deg and the executor of seed 0 lost 13 % and 45 % of its episodes in medium and
-#: severe turbulence (robustness grid, paper scale). In turbulence seeds 0 and 1 reach 0.46-0.86 deg in
-#: calm air with their last weights and survive every cell of the grid; seed 2's last weights reach
-#: 1.24-1.59 deg, its 3 M-frame snapshot 0.30-0.85 deg but flies below its airspeed command and stalls in
-#: gusts (survival 0.95 / 0.49 in medium / severe turbulence). Seed 2 ships trained with the airspeed term
-#: weighted 1.0 and sigma 10 % of cruise (its own command): 0.24-0.57 deg, survival 1 in every cell
-#: (per-seed numbers in ``falcon_rl/policies/README.md``).
-V7_PPO_ENV_OPTIONS: dict = {"turbulence": "medium"}
+#: The Airship V7's PPO trains in medium Dryden turbulence (the protocols fly calm air) with the airspeed term
+#: weighted as the bank term and twice as wide (w 0.5 -> 1.0, sigma 5 % -> 10 % of cruise), and ships the best
+#: of its validations every 1 M frames (``keep_best``; 4 held-out episodes per maneuver, ranked by survival,
+#: then mean bank RMSE). Trained in calm air, seed 1 settled at bank RMSE 1.33 / 1.28 / 3.77 / 0.86 deg and
+#: seed 0's executor lost 13 % and 45 % of its episodes in medium and severe turbulence (robustness grid,
+#: paper scale). In turbulence with the task's own airspeed term seed 2 flew below its airspeed command and
+#: stalled in gusts (survival 0.95 / 0.49 in medium / severe turbulence). With these options seeds 0 / 1 / 2
+#: reach 0.37-0.64 / 0.20-0.58 / 0.24-0.57 deg in calm air, airspeed RMSE 0.09-0.24 m/s, and survive every
+#: cell of the grid (per-seed numbers in ``falcon_rl/policies/README.md``).
+V7_PPO_ENV_OPTIONS: dict = {"turbulence": "medium", "sigma_airspeed_fraction": 0.1, "w_airspeed": 1.0}
 
 SPEC = register_task(TaskSpec(
     name="attitude", task=AttitudeTask, config=AttitudeConfig, gym_id="falcon_rl/Attitude-v0",
