@@ -269,7 +269,7 @@ class MPPI(TensorDictModuleBase):
             base = base.clone()
             base[:, k - held:] = shifted[:, index]  # [N, held, H, A]
             noise[:, k - held] = 0.0
-        return (base + noise).clamp(-1.0, 1.0)
+        return noise.add_(base).clamp_(-1.0, 1.0)  # in the fresh noise tensor: one [N, K, H, A] less
 
     def _smooth_noise(self, n: int, k: int, h: int, a: int) -> torch.Tensor:
         """Gaussian noise [N, K, H, A] drawn on knots every ``noise_knot_seconds`` and interpolated
