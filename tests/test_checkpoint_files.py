@@ -261,6 +261,8 @@ BAD_FLAGS = [
     (("--set", "backend=bogus"), "backend"),
     (("--set", "resume=maybe"), "resume"),
     (("--set", "episode_seconds=0"), "episode_seconds"),
+    (("--set", "target_entropy=high"), "target_entropy must be a finite number or 'auto'"),
+    (("--set", "target_entropy=nan"), "target_entropy must be a finite number"),
     (("--set", "env_options={'no_such_option': 1}"), "no_such_option"),
     (("--set", "batch_size"), "FIELD=VALUE"),
     (("--resume", "--resume-if-present"), "not allowed"),

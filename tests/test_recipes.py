@@ -49,6 +49,24 @@ def test_recipe_trains_checkpoints_and_resumes(name, tmp_path):
     assert list((tmp_path / name / "logs").rglob("*.csv"))
 
 
+@pytest.mark.parametrize(("given", "expected"), [("auto", -2.0), (-3.5, -3.5)])
+def test_sac_target_entropy_reaches_the_loss(given, expected, tmp_path, monkeypatch):
+    """``target_entropy``: "auto" is minus the action count (2 on altitude), a number is used as given."""
+    from falcon_rl.recipes import sac
+
+    losses = []
+
+    class Spy(sac.SACLoss):
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            losses.append(self)
+
+    monkeypatch.setattr(sac, "SACLoss", Spy)
+    recipe, cfg = tiny("sac", tmp_path, frames=64, target_entropy=given)
+    recipe.train(cfg)
+    assert len(losses) == 1 and float(losses[0].target_entropy) == expected
+
+
 def test_resume_restores_weights_and_rng(tmp_path):
     recipe, cfg = tiny("ppo", tmp_path, frames=64)
     recipe.train(cfg)

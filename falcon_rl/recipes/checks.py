@@ -90,6 +90,8 @@ def _check_range(name: str, value: object) -> str | None:
         return "must be in (0, 1]"
     if name in CHOICES and value not in CHOICES[name]:
         return f"must be one of {list(CHOICES[name])}"
+    if name == "target_entropy" and isinstance(value, str) and value != "auto":
+        return "must be a finite number or 'auto'"
     if name in ("cells", "critic_cells"):
         cells = list(value)  # type: ignore[call-overload]
         parameters = sum(a * b + b for a, b in itertools.pairwise(cells))

@@ -30,6 +30,9 @@ class SACConfig(OffPolicyConfig):
 
     alpha_lr: float = 3e-4
     alpha_init: float = 0.1
+    #: Entropy the temperature steers the policy to, nats ("auto": minus the action count, TorchRL's
+    #: default). Lower keeps the exploration noise smaller, which a precise hold needs.
+    target_entropy: float | str = "auto"
 
 
 #: Task-independent defaults (the task's ``TaskSpec.training["sac"]`` goes on top).
@@ -50,7 +53,8 @@ def train(cfg: SACConfig) -> dict:
     actor = ProbabilisticActor(TensorDictModule(actor_net, ["observation"], ["loc", "scale"]),
                                in_keys=["loc", "scale"], spec=env.action_spec, distribution_class=TanhNormal)
     loss = SACLoss(actor, make_critic(cfg, env, norm), num_qvalue_nets=2, loss_function="l2",
-                   alpha_init=cfg.alpha_init, action_spec=env.action_spec_unbatched)
+                   alpha_init=cfg.alpha_init, action_spec=env.action_spec_unbatched,
+                   target_entropy=cfg.target_entropy)
     loss.make_value_estimator(gamma=cfg.gamma)
     target_update = SoftUpdate(loss, tau=cfg.tau)
     optimizers = {"actor": torch.optim.Adam(loss.actor_network_params.values(True, True), lr=cfg.actor_lr),
