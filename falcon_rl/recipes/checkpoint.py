@@ -46,8 +46,10 @@ LEGACY_FORMATS = (1,)
 
 #: Config fields a resumed run must share with its checkpoint: the MDP, the networks, the generators.
 IDENTITY_FIELDS = ("task", "airframe", "seed", "backend", "device", "cells", "activation", "critic_cells",
-                   "critic_activation", "normalize_observations", "env_options", "episode_seconds",
-                   "buffer_size")
+                   "critic_activation", "critic_layer_norm", "normalize_observations", "env_options",
+                   "episode_seconds", "buffer_size", "n_step")
+#: What a checkpoint written before an identity field existed had in its place.
+IDENTITY_DEFAULTS = {"critic_layer_norm": False, "n_step": 1}
 
 
 # ---------------------------------------------------------------------------------------- generators
@@ -166,8 +168,9 @@ def check_resumable(doc: dict, path: str | Path, algorithm: str, config: dict) -
                                     f"{algorithm}")
     saved = doc["config"]
     for name in IDENTITY_FIELDS:
-        if name in config and _plain(saved.get(name)) != _plain(config[name]):
-            raise FileFormatError(path, f"checkpoint has {name}={_plain(saved.get(name))!r}, this run "
+        had = saved.get(name, IDENTITY_DEFAULTS.get(name))
+        if name in config and _plain(had) != _plain(config[name]):
+            raise FileFormatError(path, f"checkpoint has {name}={_plain(had)!r}, this run "
                                         f"{_plain(config[name])!r} (resume with the same settings, or train "
                                         "into another output folder)")
 

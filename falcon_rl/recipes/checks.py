@@ -23,7 +23,7 @@ MAX_ENVS = 1 << 20
 
 #: Fields (where a recipe has them) and their ranges.
 AT_LEAST_ONE = ("num_envs", "rollout_steps", "epochs", "minibatches", "batch_size", "buffer_size",
-                "updates_per_batch", "policy_delay", "frames", "checkpoint_every")
+                "updates_per_batch", "policy_delay", "frames", "checkpoint_every", "n_step")
 AT_LEAST_ZERO = ("seed", "threads", "eval_every", "eval_episodes", "final_eval_episodes",
                  "init_random_frames")
 POSITIVE = ("lr", "actor_lr", "critic_lr", "alpha_lr", "alpha_init", "norm_min_std", "clip_epsilon",
@@ -114,6 +114,10 @@ def check_config(cfg: object) -> None:
         if reason:
             raise ValueError(f"{f.name} {reason}, got {_short(value)}")
     batch_size, buffer_size = getattr(cfg, "batch_size", 1), getattr(cfg, "buffer_size", None)
+    n_step, rollout_steps = getattr(cfg, "n_step", 1), getattr(cfg, "rollout_steps", 1)
+    if n_step > rollout_steps:
+        raise ValueError(f"n_step ({n_step}) must not exceed rollout_steps ({rollout_steps}): the returns "
+                         "are summed within one collected batch")
     if buffer_size is not None and batch_size > buffer_size:
         raise ValueError(f"batch_size ({batch_size}) must not exceed buffer_size ({buffer_size})")
     if getattr(cfg, "keep_best", False):

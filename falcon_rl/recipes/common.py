@@ -113,6 +113,12 @@ class OffPolicyConfig(TrainConfig):
     #: Hidden layers and activation of the critics (the actor uses ``cells`` / ``activation``).
     critic_cells: tuple[int, ...] = (256, 256)
     critic_activation: str = "relu"
+    #: Layer norm after every hidden layer of the critics (keeps the Q features' scale steady while the
+    #: targets move; the actor and the policy file are unchanged).
+    critic_layer_norm: bool = False
+    #: Rewards summed before the critic's target bootstraps (TorchRL's MultiStep over each collected
+    #: batch, cut at episode ends and at the batch's end; 1: the one-step target). At most rollout_steps.
+    n_step: int = 1
 
 
 #: Task-independent defaults of the off-policy recipes (each task's ``TaskSpec.training["sac"/"td3"]``
@@ -132,14 +138,23 @@ OFF_POLICY_DEFAULTS: dict = {
 #: Entries of a transition kept in the replay buffer.
 TRANSITION = ("observation", "action", ("next", "observation"), ("next", "reward"), ("next", "done"),
               ("next", "terminated"))
+#: The extra entry of an n-step transition: the steps from "observation" to ("next", "observation").
+STEPS_TO_NEXT = "steps_to_next_obs"
 
 
-def transition_shapes(env: TransformedEnv) -> dict[tuple[str, ...], tuple[int, ...]]:
-    """{key: shape of one transition's entry} of :data:`TRANSITION` for ``env`` (D, A: its sizes)."""
+def transition_keys(n_step: int = 1) -> tuple:
+    """The replay buffer's entries for ``n_step``-step transitions (:data:`TRANSITION`, plus
+    :data:`STEPS_TO_NEXT` when ``n_step`` > 1)."""
+    return TRANSITION + ((STEPS_TO_NEXT,) if n_step > 1 else ())
+
+
+def transition_shapes(env: TransformedEnv, n_step: int = 1) -> dict[tuple[str, ...], tuple[int, ...]]:
+    """{key: shape of one transition's entry} of :func:`transition_keys` for ``env`` (D, A: its
+    sizes; the step count is a scalar)."""
     obs_dim, act_dim = observation_dims(env)
-    shapes = {"observation": (obs_dim,), "action": (act_dim,)}
+    shapes = {"observation": (obs_dim,), "action": (act_dim,), STEPS_TO_NEXT: ()}
     return {(k,) if isinstance(k, str) else k: shapes.get(k if isinstance(k, str) else k[1], (1,))
-            for k in TRANSITION}
+            for k in transition_keys(n_step)}
 
 
 def config_from(cls: type, task: str, algorithm: str, defaults: dict | None = None,
@@ -211,13 +226,14 @@ class RunningNorm(nn.Module):
         self.min_std = float(stats["min_std"])
 
 
-def mlp(n_in: int, n_out: int, cells: tuple[int, ...], activation: str, out_gain: float = 1.0
-        ) -> nn.Sequential:
-    """Linear-activation stack, orthogonal init (gain sqrt 2), last layer gain ``out_gain``."""
+def mlp(n_in: int, n_out: int, cells: tuple[int, ...], activation: str, out_gain: float = 1.0,
+        layer_norm: bool = False) -> nn.Sequential:
+    """Linear-activation stack, orthogonal init (gain sqrt 2), last layer gain ``out_gain``; with
+    ``layer_norm`` a LayerNorm between each hidden Linear and its activation."""
     layers: list[nn.Module] = []
     sizes = (n_in, *cells)
     for a, b in itertools.pairwise(sizes):
-        layers += [nn.Linear(a, b), ACTIVATIONS[activation]()]
+        layers += [nn.Linear(a, b), *([nn.LayerNorm(b)] if layer_norm else []), ACTIVATIONS[activation]()]
     layers.append(nn.Linear(sizes[-1], n_out))
     for i, layer in enumerate(m for m in layers if isinstance(m, nn.Linear)):
         gain = out_gain if i == len(cells) else math.sqrt(2.0)
@@ -275,12 +291,13 @@ class ValueNet(nn.Module):
 
 
 class QNet(nn.Module):
-    """obs [N, D], action [N, A] -> Q(s, a) [N, 1]."""
+    """obs [N, D], action [N, A] -> Q(s, a) [N, 1] (``layer_norm``: see :func:`mlp`)."""
 
     def __init__(self, norm: RunningNorm, obs_dim: int, act_dim: int, cells: tuple[int, ...],
-                 activation: str = "relu"):
+                 activation: str = "relu", layer_norm: bool = False):
         super().__init__()
-        self.norm, self.mlp = norm, mlp(obs_dim + act_dim, 1, cells, activation, out_gain=1.0)
+        self.norm = norm
+        self.mlp = mlp(obs_dim + act_dim, 1, cells, activation, out_gain=1.0, layer_norm=layer_norm)
 
     def forward(self, obs: torch.Tensor, action: torch.Tensor) -> torch.Tensor:
         return self.mlp(torch.cat([self.norm(obs), action], dim=-1))
@@ -391,7 +408,8 @@ def seed_everything(seed: int) -> None:
     random.seed(seed)
 
 
-__all__ = ["ACTIVATIONS", "OFF_POLICY_DEFAULTS", "TRANSITION", "Counters",
+__all__ = ["ACTIVATIONS", "OFF_POLICY_DEFAULTS", "STEPS_TO_NEXT", "TRANSITION", "Counters",
            "EpisodeStats", "OffPolicyConfig", "PolicyNet", "QNet", "RunningNorm", "TrainConfig", "ValueNet",
            "config_from", "make_actor_net", "make_train_env", "mlp", "observation_dims",
-           "seed_everything", "set_threads", "stagger_episodes", "transition_shapes", "trim_action"]
+           "seed_everything", "set_threads", "stagger_episodes", "transition_keys", "transition_shapes",
+           "trim_action"]

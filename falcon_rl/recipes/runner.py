@@ -121,7 +121,8 @@ class TrainingRun:
             if self.replay is not None:
                 if "replay" not in doc:
                     raise FileFormatError(path, "checkpoint holds no replay buffer")
-                load_replay(self.replay, doc["replay"], path, transition_shapes(self.env))
+                load_replay(self.replay, doc["replay"], path,
+                            transition_shapes(self.env, getattr(self.cfg, "n_step", 1)))
             saved_best = doc.get("extra", {}).get("best")
             if self.best is not None and saved_best is not None:  # None: a run that kept no best
                 self.best.load(saved_best, path)
