@@ -115,3 +115,42 @@ def test_n_step_beyond_the_rollout_is_refused_in_one_line(capsys):
     assert main(["train", "td3", "--frames", "64", "--set", "n_step=9", "--set", "rollout_steps=4"]) == 2
     err = capsys.readouterr().err.strip()
     assert "n_step (9) must not exceed rollout_steps (4)" in err and len(err.splitlines()) == 1
+
+
+@pytest.mark.parametrize("name", ["sac", "td3"])
+def test_anneal_lr_steps_the_actor_and_critics_down_and_leaves_the_temperature(name, tmp_path, monkeypatch):
+    """With ``anneal_lr`` the learning rates at each update batch follow 1 - frames / total (floor 5 %)."""
+    from falcon_rl.recipes import off_policy
+
+    seen: list[tuple[int, dict[str, float]]] = []
+    original = off_policy.anneal_learning_rates
+
+    def spy(cfg, optimizers, frames):
+        original(cfg, optimizers, frames)
+        seen.append((frames, {k: o.param_groups[0]["lr"] for k, o in optimizers.items()}))
+
+    monkeypatch.setattr(algorithm(name), "anneal_learning_rates", spy)
+    recipe = algorithm(name)
+    cfg = recipe.make_config("altitude", **TINY, frames=128, out=str(tmp_path / name), anneal_lr=True,
+                             actor_lr=1e-3, critic_lr=2e-3)
+    recipe.train(cfg)
+    assert len(seen) >= 2
+    for frames, lrs in seen:
+        assert lrs["actor"] == pytest.approx(1e-3 * max(1 - frames / 128, 0.05))
+        assert lrs["critic"] == pytest.approx(2e-3 * max(1 - frames / 128, 0.05))
+        if name == "sac":
+            assert lrs["alpha"] == pytest.approx(cfg.alpha_lr)
+    assert seen[-1][1]["actor"] < seen[0][1]["actor"]
+
+
+def test_without_anneal_lr_the_rates_stay():
+    from falcon_rl.recipes import td3
+    from falcon_rl.recipes.off_policy import anneal_learning_rates
+
+    cfg = td3.make_config("altitude", frames=100)
+    optimizers = {k: torch.optim.Adam([nn.Parameter(torch.zeros(1))], lr=0.1) for k in ("actor", "critic")}
+    anneal_learning_rates(cfg, optimizers, 90)
+    assert all(o.param_groups[0]["lr"] == 0.1 for o in optimizers.values())
+    cfg.anneal_lr = True
+    anneal_learning_rates(cfg, optimizers, 90)
+    assert optimizers["actor"].param_groups[0]["lr"] == pytest.approx(cfg.actor_lr * 0.1)

@@ -116,6 +116,10 @@ class OffPolicyConfig(TrainConfig):
     #: Layer norm after every hidden layer of the critics (keeps the Q features' scale steady while the
     #: targets move; the actor and the policy file are unchanged).
     critic_layer_norm: bool = False
+    #: Anneal the actor's and critics' learning rates linearly to 5 % over ``frames`` (as PPO's
+    #: ``anneal_lr``; SAC's temperature keeps its own): the last frames refine the policy instead of
+    #: moving it.
+    anneal_lr: bool = False
     #: Rewards summed before the critic's target bootstraps (TorchRL's MultiStep over each collected
     #: batch, cut at episode ends and at the batch's end; 1: the one-step target). At most rollout_steps.
     n_step: int = 1
@@ -224,6 +228,11 @@ class RunningNorm(nn.Module):
         self.count.copy_(stats["count"])
         self.enabled, self.clip = bool(stats["enabled"]), float(stats["clip"])
         self.min_std = float(stats["min_std"])
+
+
+def annealed_lr(lr: float, frames: int, total: int, floor: float = 0.05) -> float:
+    """``lr`` annealed linearly over ``total`` frames, to ``floor`` x ``lr`` from then on."""
+    return lr * max(1.0 - frames / total, floor)
 
 
 def mlp(n_in: int, n_out: int, cells: tuple[int, ...], activation: str, out_gain: float = 1.0,
@@ -410,6 +419,6 @@ def seed_everything(seed: int) -> None:
 
 __all__ = ["ACTIVATIONS", "OFF_POLICY_DEFAULTS", "STEPS_TO_NEXT", "TRANSITION", "Counters",
            "EpisodeStats", "OffPolicyConfig", "PolicyNet", "QNet", "RunningNorm", "TrainConfig", "ValueNet",
-           "config_from", "make_actor_net", "make_train_env", "mlp", "observation_dims",
+           "annealed_lr", "config_from", "make_actor_net", "make_train_env", "mlp", "observation_dims",
            "seed_everything", "set_threads", "stagger_episodes", "transition_keys", "transition_shapes",
            "trim_action"]

@@ -16,7 +16,15 @@ from torchrl.data.postprocs import MultiStep
 from torchrl.envs import TransformedEnv
 from torchrl.modules import ValueOperator
 
-from .common import STEPS_TO_NEXT, OffPolicyConfig, QNet, RunningNorm, observation_dims, transition_keys
+from .common import (
+    STEPS_TO_NEXT,
+    OffPolicyConfig,
+    QNet,
+    RunningNorm,
+    annealed_lr,
+    observation_dims,
+    transition_keys,
+)
 from .runner import TrainingRun
 
 
@@ -52,6 +60,17 @@ def n_step_transitions(batch: TensorDictBase, gamma: float, n_step: int) -> Tens
     return out
 
 
+def anneal_learning_rates(cfg: OffPolicyConfig, optimizers: dict[str, torch.optim.Optimizer],
+                          frames: int) -> None:
+    """With ``cfg.anneal_lr``: set the "actor" and "critic" optimizers' learning rates for ``frames``
+    trained frames (:func:`annealed_lr` of ``actor_lr`` / ``critic_lr``); a no-op otherwise."""
+    if not cfg.anneal_lr:
+        return
+    for name, lr in (("actor", cfg.actor_lr), ("critic", cfg.critic_lr)):
+        for group in optimizers[name].param_groups:
+            group["lr"] = annealed_lr(lr, frames, cfg.frames)
+
+
 def stored_batches(cfg: OffPolicyConfig, policy: TensorDictModuleBase, run: TrainingRun,
                    buffer: ReplayBuffer, norm: RunningNorm) -> Iterator[tuple[TensorDictBase, bool]]:
     """Collect the remaining frames in batches of [num_envs, rollout_steps] (``run.batches``: uniform
@@ -69,4 +88,5 @@ def stored_batches(cfg: OffPolicyConfig, policy: TensorDictModuleBase, run: Trai
         yield batch, len(buffer) >= learn_after
 
 
-__all__ = ["make_critic", "make_replay_buffer", "n_step_transitions", "stored_batches"]
+__all__ = ["anneal_learning_rates", "make_critic", "make_replay_buffer", "n_step_transitions",
+           "stored_batches"]

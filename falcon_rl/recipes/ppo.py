@@ -23,6 +23,7 @@ from torchrl.objectives.value import GAE
 from .common import (
     TrainConfig,
     ValueNet,
+    annealed_lr,
     config_from,
     make_actor_net,
     make_train_env,
@@ -88,7 +89,7 @@ def train(cfg: PPOConfig) -> dict:
     counters = run.start(doc)
     for batch in run.batches(actor, cfg.num_envs * cfg.rollout_steps):
         if cfg.anneal_lr:
-            optimizer.param_groups[0]["lr"] = cfg.lr * max(1.0 - counters.frames / cfg.frames, 0.05)
+            optimizer.param_groups[0]["lr"] = annealed_lr(cfg.lr, counters.frames, cfg.frames)
         batch["next", "reward"] = batch["next", "reward"] * cfg.reward_scale
         with torch.no_grad():
             gae(batch)

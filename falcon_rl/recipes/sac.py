@@ -20,7 +20,7 @@ from torchrl.modules import ProbabilisticActor, TanhNormal
 from torchrl.objectives import SACLoss, SoftUpdate
 
 from .common import OFF_POLICY_DEFAULTS, OffPolicyConfig, config_from, make_actor_net, make_train_env
-from .off_policy import make_critic, make_replay_buffer, stored_batches
+from .off_policy import anneal_learning_rates, make_critic, make_replay_buffer, stored_batches
 from .runner import TrainingRun, prepare
 
 
@@ -68,6 +68,7 @@ def train(cfg: SACConfig) -> dict:
     scalars: dict[str, float] = {}
     for batch, ready in stored_batches(cfg, actor, run, buffer, norm):
         if ready:
+            anneal_learning_rates(cfg, optimizers, counters.frames)
             for _ in range(cfg.updates_per_batch):
                 out = loss(buffer.sample())
                 for optimizer in optimizers.values():

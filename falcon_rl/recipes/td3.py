@@ -22,7 +22,7 @@ from torchrl.modules import AdditiveGaussianModule
 from torchrl.objectives import SoftUpdate, TD3Loss
 
 from .common import OFF_POLICY_DEFAULTS, OffPolicyConfig, config_from, make_actor_net, make_train_env
-from .off_policy import make_critic, make_replay_buffer, stored_batches
+from .off_policy import anneal_learning_rates, make_critic, make_replay_buffer, stored_batches
 from .runner import TrainingRun, prepare
 
 
@@ -73,6 +73,7 @@ def train(cfg: TD3Config) -> dict:
     scalars: dict[str, float] = {}
     for batch, ready in stored_batches(cfg, explore, run, buffer, norm):
         if ready:
+            anneal_learning_rates(cfg, optimizers, counters.frames)
             for _ in range(cfg.updates_per_batch):
                 counters.updates += 1
                 out = loss(buffer.sample())
