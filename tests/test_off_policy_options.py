@@ -88,7 +88,7 @@ def test_critic_layer_norm_sits_between_each_hidden_layer_and_its_activation():
     assert normed(torch.randn(4, 3), torch.randn(4, 2)).shape == (4, 1)
 
 
-TINY = {"num_envs": 8, "rollout_steps": 4, "updates_per_batch": 2, "batch_size": 16, "init_random_frames": 32,
+TINY = {"num_envs": 8, "rollout_steps": 8, "updates_per_batch": 2, "batch_size": 16, "init_random_frames": 32,
         "buffer_size": 1000, "critic_cells": (16,), "cells": (16,), "final_eval_episodes": 0,
         "progress": False, "checkpoint_every": 10**9}
 

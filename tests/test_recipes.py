@@ -17,9 +17,9 @@ from falcon_rl.recipes.checkpoint import load_checkpoint, load_replay, replay_st
 from falcon_rl.recipes.common import RunningNorm
 
 TINY = {"ppo": {"num_envs": 8, "rollout_steps": 8, "epochs": 1, "minibatches": 2},
-        "sac": {"num_envs": 8, "rollout_steps": 4, "updates_per_batch": 2, "batch_size": 16,
+        "sac": {"num_envs": 8, "rollout_steps": 8, "updates_per_batch": 2, "batch_size": 16,
                 "init_random_frames": 32, "buffer_size": 1000, "critic_cells": (16,), "cells": (16,)},
-        "td3": {"num_envs": 8, "rollout_steps": 4, "updates_per_batch": 2, "batch_size": 16,
+        "td3": {"num_envs": 8, "rollout_steps": 8, "updates_per_batch": 2, "batch_size": 16,
                 "init_random_frames": 32, "buffer_size": 1000, "critic_cells": (16,), "cells": (16,)}}
 
 

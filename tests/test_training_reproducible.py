@@ -22,7 +22,7 @@ NAMES = ("ppo", "sac", "td3")
 #: Tiny runs (a few hundred env-steps); 1 s episodes so that envs crash, truncate and reset mid-run.
 BASE = ("--envs", "8", "--eval-episodes", "0", "--no-progress", "--logger", "none",
         "--set", "episode_seconds=1.0")
-OFF_POLICY = ("--set", "rollout_steps=4", "--set", "updates_per_batch=2", "--set", "batch_size=16",
+OFF_POLICY = ("--set", "rollout_steps=8", "--set", "updates_per_batch=2", "--set", "batch_size=16",
               "--set", "init_random_frames=32", "--set", "buffer_size=1000", "--set", "cells=(16,)",
               "--set", "critic_cells=(16,)")
 TINY = {"ppo": ("--set", "rollout_steps=8", "--set", "epochs=1", "--set", "minibatches=2"),
