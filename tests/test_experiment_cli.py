@@ -21,17 +21,17 @@ def run(*args: str) -> dict:
 
 
 def test_altitude_study_writes_its_outputs_and_resumes(tmp_path: Path) -> None:
-    args = ("altitude", "--airframes", "volantex_ranger", "--controllers", "lqr,sac",
+    args = ("altitude", "--airframes", "airship_v7", "--controllers", "lqr,sac",
             "--episodes", "2", "--out", str(tmp_path))
     doc = run(*args)
     study = doc["studies"]["altitude"]
     assert study["cells"] == 2 and study["finished"] == 2
     report = Path(study["report"]).read_text()
-    assert "| volantex_ranger | lqr |" in report and "no policy" in report  # no SAC policy ships
+    assert "| airship_v7 | lqr |" in report and "no policy" in report  # no V7 SAC altitude policy ships
     assert "\\toprule" in Path(study["tables"]).read_text()
     results = json.loads(Path(study["results"]).read_text())
     assert results["format"] == "falcon-rl-experiment/1"
-    lqr = next(c for c in results["cells"] if c["controller"] == "lqr" and c["airframe"] == "volantex_ranger")
+    lqr = next(c for c in results["cells"] if c["controller"] == "lqr" and c["airframe"] == "airship_v7")
     assert lqr["summary"]["survival"] == 1.0 and lqr["summary"]["rmse_m"] < 0.5
     sac = next(a for a in results["aggregates"] if a["controller"] == "sac")
     assert sac["metrics"] == {}  # an empty entry, as the paper leaves it
