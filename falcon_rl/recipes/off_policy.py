@@ -6,6 +6,7 @@ in both, so that a change to collection or storage is made once.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Iterator
 
 import torch
@@ -43,6 +44,12 @@ def make_replay_buffer(cfg: OffPolicyConfig) -> ReplayBuffer:
                         batch_size=cfg.batch_size)
 
 
+@functools.cache
+def _multi_step(gamma: float, n_step: int) -> MultiStep:
+    """One stateless MultiStep per (gamma, n_step), built once rather than for every batch."""
+    return MultiStep(gamma=gamma, n_steps=n_step)
+
+
 def n_step_transitions(batch: TensorDictBase, gamma: float, n_step: int) -> TensorDictBase:
     """Batch [B, T] of one-step transitions -> [B, T] ``n_step``-step ones (TorchRL's MultiStep): the
     reward is the discounted sum over up to ``n_step`` steps, cut at an episode's end and at the
@@ -52,7 +59,7 @@ def n_step_transitions(batch: TensorDictBase, gamma: float, n_step: int) -> Tens
     past a crash inside the window."""
     if n_step <= 1:
         return batch
-    out = MultiStep(gamma=gamma, n_steps=n_step)(batch)
+    out = _multi_step(gamma, n_step)(batch)
     last = (torch.arange(batch.shape[-1], device=batch.device) + out[STEPS_TO_NEXT] - 1)
     for key in ("done", "terminated"):
         flag = batch["next", key]
