@@ -1,0 +1,31 @@
+"""The altitude task's off-policy training episodes reach the hold on every reference airframe: the
+longest ramp (offset_max / climb-rate limit) plus ``hold_seconds`` fits in one episode. On the Airship
+V7 (0.83 m/s) 20 s episodes ended on the ramp and SAC never learned to hold (RMSE 1.39 m)."""
+
+from __future__ import annotations
+
+import pytest
+
+import falcon_rl  # noqa: F401  (registers the shipped tasks)
+from falcon_rl.airframe import load_airframe
+from falcon_rl.envs.tasks import task_spec
+
+
+@pytest.mark.parametrize("algorithm", ["sac", "td3"])
+@pytest.mark.parametrize("airframe", ["airship_v7", "volantex_ranger"])
+def test_off_policy_episodes_cover_the_longest_ramp_and_the_hold(algorithm: str, airframe: str) -> None:
+    spec = task_spec("altitude")
+    config = spec.default_config()
+    training = spec.training_defaults(algorithm, airframe)
+    ramp = config.offset_max / load_airframe(airframe).envelope.climb_rate_limit
+    assert training["episode_seconds"] >= ramp + config.hold_seconds, (airframe, ramp, training)
+
+
+def test_v7_off_policy_defaults_differ_from_the_rangers_only_in_episode_length_and_frames() -> None:
+    spec = task_spec("altitude")
+    for algorithm in ("sac", "td3"):
+        v7 = spec.training_defaults(algorithm, "airship_v7")
+        ranger = spec.training_defaults(algorithm, "volantex_ranger")
+        differing = {k for k in v7.keys() | ranger.keys() if v7.get(k) != ranger.get(k)}
+        assert differing <= {"episode_seconds", "frames"}
+        assert v7["episode_seconds"] > ranger["episode_seconds"]
