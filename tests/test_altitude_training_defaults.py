@@ -21,11 +21,24 @@ def test_off_policy_episodes_cover_the_longest_ramp_and_the_hold(algorithm: str,
     assert training["episode_seconds"] >= ramp + config.hold_seconds, (airframe, ramp, training)
 
 
-def test_v7_off_policy_defaults_differ_from_the_rangers_only_in_episode_length_and_frames() -> None:
+def test_v7_off_policy_defaults_differ_from_the_rangers_only_in_episodes_frames_and_td3_airspeed() -> None:
     spec = task_spec("altitude")
     for algorithm in ("sac", "td3"):
         v7 = spec.training_defaults(algorithm, "airship_v7")
         ranger = spec.training_defaults(algorithm, "volantex_ranger")
         differing = {k for k in v7.keys() | ranger.keys() if v7.get(k) != ranger.get(k)}
-        assert differing <= {"episode_seconds", "frames"}
+        allowed = {"episode_seconds", "frames"} | ({"env_options"} if algorithm == "td3" else set())
+        assert differing <= allowed, (algorithm, differing)
         assert v7["episode_seconds"] > ranger["episode_seconds"]
+    td3 = spec.training_defaults("td3", "airship_v7")["env_options"]
+    assert td3 == {"w_airspeed": 2.0} and td3["w_airspeed"] > spec.default_config().w_airspeed
+
+
+def test_v7_td3_env_options_build_the_training_env() -> None:
+    from falcon_rl.recipes.common import make_train_env
+    from falcon_rl.recipes.td3 import make_config
+
+    cfg = make_config("altitude", airframe="airship_v7", num_envs=2, out=None)
+    env = make_train_env(cfg)
+    assert env.base_env.task.config.w_airspeed == 2.0
+    assert env.base_env.task.config.survival_bonus == 1.0  # the task's training defaults stay underneath

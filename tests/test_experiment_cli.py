@@ -21,17 +21,17 @@ def run(*args: str) -> dict:
 
 
 def test_altitude_study_writes_its_outputs_and_resumes(tmp_path: Path) -> None:
-    args = ("altitude", "--airframes", "airship_v7", "--controllers", "lqr,td3",
+    args = ("altitude", "--airframes", "navion", "--controllers", "lqr,td3",
             "--episodes", "2", "--out", str(tmp_path))
     doc = run(*args)
     study = doc["studies"]["altitude"]
     assert study["cells"] == 2 and study["finished"] == 2
     report = Path(study["report"]).read_text()
-    assert "| airship_v7 | lqr |" in report and "no policy" in report  # no V7 TD3 altitude policy ships
+    assert "| navion | lqr |" in report and "no policy" in report  # no Navion TD3 altitude policy ships
     assert "\\toprule" in Path(study["tables"]).read_text()
     results = json.loads(Path(study["results"]).read_text())
     assert results["format"] == "falcon-rl-experiment/1"
-    lqr = next(c for c in results["cells"] if c["controller"] == "lqr" and c["airframe"] == "airship_v7")
+    lqr = next(c for c in results["cells"] if c["controller"] == "lqr" and c["airframe"] == "navion")
     assert lqr["summary"]["survival"] == 1.0 and lqr["summary"]["rmse_m"] < 0.5
     td3 = next(a for a in results["aggregates"] if a["controller"] == "td3")
     assert td3["metrics"] == {}  # an empty entry, as the paper leaves it
