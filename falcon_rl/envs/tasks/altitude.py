@@ -284,7 +284,8 @@ OFF_POLICY_CRITIC: dict = {"n_step": 5, "critic_layer_norm": True}
 #: 12-18 m ramp alone takes 14.5-21.7 s and 20 s episodes end on the ramp or a few seconds into the hold;
 #: SAC trained on them (seed 0, 400 k frames) never learned to hold: it settled 0.9-1.7 m below the
 #: target with a steady throttle (100-episode protocol: RMSE 1.39 m, acquisition 0.40). With these, SAC
-#: seed 0 tested 0.27 m (acquisition 0.96) and TD3 seed 0 0.66 m (0.76): better, still short of 0.2 m.
+#: seeds 0 / 1 / 2 tested 0.27 / 0.80 / 0.006 m (acquisition 0.96 / 0.83 / 1; seeds 0 and 1 hold the V7
+#: 2-7 m/s below its trim airspeed) and TD3 seed 0 0.66 m (0.76), hence :data:`V7_TD3`.
 V7_OFF_POLICY: dict = {"episode_seconds": 40.0, "frames": 700_000}
 
 #: The Airship V7's TD3 altitude: :data:`V7_OFF_POLICY`, 600 k frames and the airspeed penalty weighted
