@@ -42,3 +42,12 @@ def test_v7_td3_env_options_build_the_training_env() -> None:
     env = make_train_env(cfg)
     assert env.base_env.task.config.w_airspeed == 2.0
     assert env.base_env.task.config.survival_bonus == 1.0  # the task's training defaults stay underneath
+
+
+def test_env_options_given_merge_into_the_recipes() -> None:
+    from falcon_rl.recipes.td3 import make_config
+
+    cfg = make_config("altitude", airframe="airship_v7", env_options={"decimation": 4})
+    assert cfg.env_options == {"w_airspeed": 2.0, "decimation": 4}
+    cfg = make_config("altitude", airframe="airship_v7", env_options={"w_airspeed": 0.5})
+    assert cfg.env_options == {"w_airspeed": 0.5}

@@ -61,7 +61,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE",
                         help="override a recipe field (Python literal), e.g. --set batch_size=512 "
-                             "--set 'env_options={\"decimation\": 5}'; repeatable")
+                             "--set 'env_options={\"decimation\": 5}' (merged into the recipe's "
+                             "env_options); repeatable")
 
 
 def parse_overrides(items: list[str]) -> dict:

@@ -165,7 +165,9 @@ def config_from(cls: type, task: str, algorithm: str, defaults: dict | None = No
                 **overrides) -> TrainConfig:
     """``cls`` with the recipe's task-independent ``defaults``, then the task's defaults for
     ``algorithm`` (``task_spec(task).training``, with the airframe's ``airframe_training`` on top), then
-    ``overrides`` (None values are ignored)."""
+    ``overrides`` (None values are ignored). ``env_options`` merge key by key instead: an override adds
+    to (or replaces single entries of) the task's, so ``--set 'env_options={"turbulence": "medium"}'``
+    keeps the recipe's reward weights."""
     names = {f.name for f in fields(cls)}
     unknown = set(overrides) - names
     if unknown:
@@ -174,6 +176,9 @@ def config_from(cls: type, task: str, algorithm: str, defaults: dict | None = No
     airframe = given.get("airframe", (defaults or {}).get("airframe", cls.airframe))
     task_defaults = task_spec(task).training_defaults(algorithm, airframe)
     values = {**copy.deepcopy(defaults or {}), **task_defaults, **given}
+    if isinstance(given.get("env_options"), dict):  # anything else fails the config checks
+        values["env_options"] = {**(defaults or {}).get("env_options", {}),
+                                 **task_defaults.get("env_options", {}), **given["env_options"]}
     return cls(task=task, **values)
 
 
