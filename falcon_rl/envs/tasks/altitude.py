@@ -293,7 +293,7 @@ V7_OFF_POLICY: dict = {"episode_seconds": 40.0, "frames": 700_000}
 #: V7 2-3 m/s below its trim airspeed, where the capture term ``taper(e_h, 1 m) * taper(e_V, 5 %)`` pays
 #: nothing and the Gaussian altitude term is flat within a metre (seed 0: 0.663 m, acquisition 0.76; gamma
 #: 0.995 or 10-step returns: validations 1.9-8 m at 400 k frames); with the heavier airspeed term it flies
-#: at trim and seed 0 tested 0.132 m, acquisition 1 (falcon_rl/policies/README.md).
+#: at trim and seeds 0 / 1 / 2 tested 0.132 / 0.077 / 0.010 m, acquisition 1 (falcon_rl/policies/README.md).
 V7_TD3: dict = {**V7_OFF_POLICY, "frames": 600_000, "env_options": {"w_airspeed": 2.0}}
 
 #: Training defaults (on top of each recipe's own). PPO: 256 envs x 32 steps per batch (8,192 frames),
