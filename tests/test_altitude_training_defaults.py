@@ -21,17 +21,20 @@ def test_off_policy_episodes_cover_the_longest_ramp_and_the_hold(algorithm: str,
     assert training["episode_seconds"] >= ramp + config.hold_seconds, (airframe, ramp, training)
 
 
-def test_v7_off_policy_defaults_differ_from_the_rangers_only_in_episodes_frames_and_td3_airspeed() -> None:
+def test_v7_off_policy_defaults_differ_from_the_rangers_only_in_episodes_frames_and_airspeed_weight() -> None:
     spec = task_spec("altitude")
     for algorithm in ("sac", "td3"):
         v7 = spec.training_defaults(algorithm, "airship_v7")
         ranger = spec.training_defaults(algorithm, "volantex_ranger")
         differing = {k for k in v7.keys() | ranger.keys() if v7.get(k) != ranger.get(k)}
-        allowed = {"episode_seconds", "frames"} | ({"env_options"} if algorithm == "td3" else set())
-        assert differing <= allowed, (algorithm, differing)
+        assert differing <= {"episode_seconds", "frames", "env_options"}, (algorithm, differing)
         assert v7["episode_seconds"] > ranger["episode_seconds"]
-    td3 = spec.training_defaults("td3", "airship_v7")["env_options"]
-    assert td3 == {"w_airspeed": 2.0} and td3["w_airspeed"] > spec.default_config().w_airspeed
+    heavier = {"w_airspeed": 2.0}
+    assert heavier["w_airspeed"] > spec.default_config().w_airspeed
+    assert spec.training_defaults("td3", "airship_v7")["env_options"] == heavier
+    assert spec.training_defaults("sac", "volantex_ranger")["env_options"] == heavier
+    assert "env_options" not in spec.training_defaults("sac", "airship_v7")  # SAC on the V7 keeps 0.5
+    assert "env_options" not in spec.training_defaults("td3", "volantex_ranger")
 
 
 def test_v7_td3_env_options_build_the_training_env() -> None:
