@@ -288,20 +288,26 @@ OFF_POLICY_CRITIC: dict = {"n_step": 5, "critic_layer_norm": True}
 #: 2-7 m/s below its trim airspeed) and TD3 seed 0 0.66 m (0.76), hence :data:`V7_TD3`.
 V7_OFF_POLICY: dict = {"episode_seconds": 40.0, "frames": 700_000}
 
-#: The Airship V7's TD3 altitude: :data:`V7_OFF_POLICY`, 600 k frames and the airspeed penalty weighted
-#: 2.0 instead of 0.5 (``w_airspeed``; the paper's reward, one weight changed). On the defaults TD3 held the
-#: V7 2-3 m/s below its trim airspeed, where the capture term ``taper(e_h, 1 m) * taper(e_V, 5 %)`` pays
-#: nothing and the Gaussian altitude term is flat within a metre (seed 0: 0.663 m, acquisition 0.76; gamma
-#: 0.995 or 10-step returns: validations 1.9-8 m at 400 k frames); with the heavier airspeed term it flies
-#: at trim and seeds 0 / 1 / 2 tested 0.132 / 0.077 / 0.010 m, acquisition 1 (falcon_rl/policies/README.md).
-V7_TD3: dict = {**V7_OFF_POLICY, "frames": 600_000, "env_options": {"w_airspeed": 2.0}}
+#: The airspeed penalty weighted 2.0 instead of 0.5 (``w_airspeed``; the paper's reward, one weight
+#: changed), for the off-policy runs that settle off the trim airspeed: more than 5 % from it the capture
+#: term ``taper(e_h, 1 m) * taper(e_V, 5 %)`` pays nothing and the Gaussian altitude term is flat within a
+#: metre, so only the airspeed penalty leads the policy back to trim and the last metre.
+HEAVIER_AIRSPEED_PENALTY: dict = {"w_airspeed": 2.0}
 
-#: The Volantex Ranger's SAC altitude: the airspeed penalty weighted 2.0 as well. On the defaults seed 2
-#: held the Ranger 0.3-0.45 m high at 16 m/s, more than 5 % above its 15 m/s trim, where the capture term
-#: pays nothing (0.63 m; 0.56 m after 700 k frames), while seeds 0 / 1 tested 0.054 / 0.019 m; with 2.0,
-#: seeds 0 / 1 / 2 tested 0.187 / 0.164 / 0.057 m, acquisition 1. On the V7 the weight did not help SAC
-#: (seed 1: 0.58 m at 700 k frames), so its SAC keeps 0.5 (falcon_rl/policies/README.md).
-RANGER_SAC: dict = {"env_options": {"w_airspeed": 2.0}}
+#: The Airship V7's TD3 altitude: :data:`V7_OFF_POLICY`, 600 k frames and
+#: :data:`HEAVIER_AIRSPEED_PENALTY`. On the defaults TD3 held the V7 2-3 m/s below its trim airspeed
+#: (seed 0: 0.663 m, acquisition 0.76; gamma 0.995 or 10-step returns: validations 1.9-8 m at 400 k
+#: frames); with the heavier airspeed term it flies at trim and seeds 0 / 1 / 2 tested 0.132 / 0.077 /
+#: 0.010 m, acquisition 1 (falcon_rl/policies/README.md).
+V7_TD3: dict = {**V7_OFF_POLICY, "frames": 600_000, "env_options": HEAVIER_AIRSPEED_PENALTY}
+
+#: The Volantex Ranger's SAC altitude: :data:`HEAVIER_AIRSPEED_PENALTY` as well. On the defaults seed 2
+#: held the Ranger 0.3-0.45 m high at 16 m/s, more than 5 % above its 15 m/s trim (0.63 m; 0.56 m after
+#: 700 k frames), while seeds 0 / 1 tested 0.054 / 0.019 m; with it, seeds 0 / 1 / 2 tested 0.187 / 0.164
+#: / 0.057 m, acquisition 1. On the V7 the weight did not help SAC (seed 1: 0.58 m at 700 k frames), so
+#: its SAC keeps 0.5 (falcon_rl/policies/README.md). ``training_defaults`` deep-copies, so the two
+#: defaults never share the dict with a run's config.
+RANGER_SAC: dict = {"env_options": HEAVIER_AIRSPEED_PENALTY}
 
 #: Training defaults (on top of each recipe's own). PPO: 256 envs x 32 steps per batch (8,192 frames),
 #: 20 s episodes, 8 M frames (12 M on the Ranger); every recipe validates on 16 held-out episodes every
