@@ -97,6 +97,25 @@ def test_initial_offsets_and_reference_ramp() -> None:
     assert obs.abs().max() <= 3.0
 
 
+@pytest.mark.parametrize("task", ["altitude", "attitude"])
+def test_initial_airspeed_spread_draws_off_trim_starts(task: str) -> None:
+    """Spread s: initial airspeeds fill trim x [1 - s, 1 + s], the same per seed; without it every
+    episode starts at trim and the seed's draws (targets, offsets) are those of an env without the field."""
+    def reset(**options) -> TensorDict:
+        return make_env(task, "airship_v7", num_envs=256, seed=9, **options).reset()
+
+    spread, plain = reset(initial_airspeed_spread=0.2), reset()
+    trim = make_env(task, "airship_v7", num_envs=1, seed=0).task.trim_airspeed
+    speeds = spread["state", "airspeed"][:, 0] / trim
+    assert speeds.min() >= 0.8 - 1e-5 and speeds.max() <= 1.2 + 1e-5
+    assert speeds.min() < 0.85 and speeds.max() > 1.15
+    torch.testing.assert_close(plain["state", "airspeed"][:, 0], torch.full((256,), trim))
+    assert (reset(initial_airspeed_spread=0.2) == spread).all()
+    assert (reset(initial_airspeed_spread=0.0) == plain).all()
+    with pytest.raises(ValueError, match="initial_airspeed_spread must be a number in"):
+        make_env(task, "airship_v7", initial_airspeed_spread=0.7)
+
+
 def test_target_sequence_releases_a_new_target() -> None:
     env = make_env("altitude", "navion", num_envs=4, target_sequence=True, hold_seconds=0.05,
                    offset_min=0.0, offset_max=0.0)

@@ -89,6 +89,9 @@ class TaskConfig:
     trim_airspeed: float | None = None
     #: Stall termination: |alpha| beyond this multiple of the airframe's alpha_stall.
     stall_alpha_factor: float = 1.5
+    #: Training start off trim: each episode's initial airspeed is ``trim_airspeed`` x U(1 - s, 1 + s)
+    #: (attitude and surfaces at trim); 0, the default and the paper's start, draws nothing. In [0, 0.5].
+    initial_airspeed_spread: float = 0.0
 
 
 class FusedTaskStep(Protocol):
@@ -124,6 +127,9 @@ class Task(ABC):
         self.trim = trim_point(sim, self.trim_airspeed, ground_effect=ground_effect)
         self.stall_speed = float(env.stall_speed)
         self.stall_alpha = float(config.stall_alpha_factor * self.airframe.aero.alpha_stall)
+        spread = config.initial_airspeed_spread
+        if not (isinstance(spread, (int, float)) and 0.0 <= spread <= 0.5):
+            raise ValueError(f"initial_airspeed_spread must be a number in [0, 0.5], got {spread!r}")
         n = self.num_envs
         #: Full simulator command, trim in the channels the action does not drive. [N, 4]
         self.command_buffer = self.trim.command.expand(n, 4).clone()
@@ -157,9 +163,15 @@ class Task(ABC):
     # ------------------------------------------------------------------ hooks
     def trim_initial(self, yaw: torch.Tensor | None = None) -> dict[str, torch.Tensor]:
         """Initial fields of straight and level trim at ``trim_airspeed``, heading ``yaw`` [N] rad
-        (north when None); position and height are left to the task."""
+        (north when None); position and height are left to the task. With ``initial_airspeed_spread`` s
+        > 0 the body velocity is scaled per env by U(1 - s, 1 + s) ([N, 3]; drawn from the env's
+        generator, so seeds without the option keep their streams)."""
         t = self.trim
-        initial = {"velocity_body": t.velocity_body, "surface_position": t.surface_position,
+        velocity = t.velocity_body
+        if self.config.initial_airspeed_spread > 0.0:
+            spread = self.config.initial_airspeed_spread
+            velocity = velocity * self.uniform(1.0 - spread, 1.0 + spread, 1)
+        initial = {"velocity_body": velocity, "surface_position": t.surface_position,
                    "throttle": t.throttle, "command": t.command,
                    "angular_rate_body": torch.zeros(3, device=self.device, dtype=self.dtype)}
         if yaw is None:
