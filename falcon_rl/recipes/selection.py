@@ -1,7 +1,9 @@
 """Keeping the best policy of a run (``keep_best``): every periodic evaluation scores the current
 weights on *validation* episodes (the task's protocol with seed ``seed + VALIDATION_SEED``, never the
 final evaluation's ``seed + EVAL_SEED``), and the run ships the best of those snapshots and of its
-last weights, the way a practitioner picks a checkpoint on held-out episodes before the test.
+last weights, the way a practitioner picks a checkpoint on held-out episodes before the test. Where
+the protocol's episodes do not depend on the seed (the attitude maneuvers, flown from trim in calm
+air) the validation flies the test's episodes, and the choice is made on the protocol itself.
 
 Score (lower is better, compared as a tuple): ``(-survival, -acquisition, ..., metric)`` (the
 :data:`GATES`), each the mean over the protocol's cases (e.g. maneuvers), where ``metric`` is the

@@ -222,7 +222,7 @@ RANGER_ENV_OPTIONS: dict = {"sigma_bank": 0.075}
 RANGER_OFF_POLICY: dict = {"env_options": RANGER_ENV_OPTIONS, "eval_every": 50_000, "keep_best": True}
 #: The Airship V7's PPO trains in medium Dryden turbulence (the protocols fly calm air) with the airspeed term
 #: weighted as the bank term and twice as wide (w 0.5 -> 1.0, sigma 5 % -> 10 % of cruise), and ships the best
-#: of its validations every 1 M frames (``keep_best``; 4 held-out episodes per maneuver, ranked by survival,
+#: of its validations every 1 M frames (``keep_best``; 4 episodes per maneuver, ranked by survival,
 #: then mean bank RMSE). Trained in calm air, seed 1 settled at bank RMSE 1.33 / 1.28 / 3.77 / 0.86 deg and
 #: seed 0's executor lost 13 % and 45 % of its episodes in medium and severe turbulence (robustness grid,
 #: paper scale). In turbulence with the task's own airspeed term seed 2 flew below its airspeed command and
