@@ -167,9 +167,8 @@ class Task(ABC):
         > 0 the body velocity is scaled per env by U(1 - s, 1 + s) ([N, 3]; drawn from the env's
         generator, so seeds without the option keep their streams)."""
         t = self.trim
-        velocity = t.velocity_body
-        if self.config.initial_airspeed_spread > 0.0:
-            spread = self.config.initial_airspeed_spread
+        velocity, spread = t.velocity_body, self.config.initial_airspeed_spread
+        if spread > 0.0:
             velocity = velocity * self.uniform(1.0 - spread, 1.0 + spread, 1)
         initial = {"velocity_body": velocity, "surface_position": t.surface_position,
                    "throttle": t.throttle, "command": t.command,
