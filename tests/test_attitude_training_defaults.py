@@ -24,3 +24,15 @@ def test_v7_off_policy_attitude_keeps_the_tasks_term_and_the_last_weights() -> N
     for algorithm in ("sac", "td3"):
         v7 = spec.training_defaults(algorithm, "airship_v7")
         assert "env_options" not in v7 and not v7.get("keep_best"), (algorithm, v7)
+
+
+def test_ranger_ppo_attitude_trains_in_medium_turbulence_with_the_sharper_bank_term() -> None:
+    spec = task_spec("attitude")
+    ppo = spec.training_defaults("ppo", "volantex_ranger")
+    assert ppo["env_options"] == {"sigma_bank": 0.075, "turbulence": "medium"}
+    assert spec.training_defaults("sac", "volantex_ranger")["env_options"] == {"sigma_bank": 0.075}
+    from falcon_rl.recipes.common import make_train_env
+    from falcon_rl.recipes.ppo import make_config
+
+    env = make_train_env(make_config("attitude", airframe="volantex_ranger", num_envs=2, out=None))
+    assert env.base_env.config.turbulence == "medium" and env.base_env.task.config.sigma_bank == 0.075
