@@ -279,7 +279,9 @@ def robustness_grid(airframe: str, controller: str, factory: ControllerFactory |
     paper: the four maneuvers, one episode each); "random" flies random command streams. ``seconds``:
     the first ``seconds`` s of each stream (None: the whole maneuver; 30 s of a random stream). Every
     cell uses ``seed``, so the nominal cell (flown once) is the one of every family. A progress bar
-    counts the cells (``progress=False`` hides it)."""
+    counts the cells (``progress=False`` hides it). Torch's thread count is the caller's: the CLI and the
+    sweep set one thread, the fastest for these small batches (on a busy 2-core CPU a script left at two
+    threads flew a paper-scale grid about 4x slower)."""
     families, levels, maneuvers = tuple(families), tuple(levels), tuple(maneuvers)
     if not families or not levels or not maneuvers:
         raise ValueError("families, levels and maneuvers must each name at least one entry")
