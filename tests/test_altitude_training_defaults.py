@@ -54,3 +54,30 @@ def test_env_options_given_merge_into_the_recipes() -> None:
     assert cfg.env_options == {"w_airspeed": 2.0, "decimation": 4}
     cfg = make_config("altitude", airframe="airship_v7", env_options={"w_airspeed": 0.5})
     assert cfg.env_options == {"w_airspeed": 0.5}
+
+
+def test_v7_ppo_trains_on_near_target_starts_and_covers_the_longest_ramp() -> None:
+    spec = task_spec("altitude")
+    config = spec.default_config()
+    training = spec.training_defaults("ppo", "airship_v7")
+    ramp = config.offset_max / load_airframe("airship_v7").envelope.climb_rate_limit
+    assert training["episode_seconds"] >= ramp + config.hold_seconds
+    assert training["env_options"] == {"offset_min": 0.0}
+    assert "env_options" not in spec.training_defaults("ppo", "volantex_ranger")
+
+
+def test_v7_ppo_training_starts_span_the_target_while_the_protocol_keeps_the_papers_offsets() -> None:
+    from falcon_rl.envs import make_env
+    from falcon_rl.recipes.common import make_train_env
+    from falcon_rl.recipes.ppo import make_config
+
+    cfg = make_config("altitude", airframe="airship_v7", num_envs=512, out=None)
+    env = make_train_env(cfg)
+    env.reset()
+    task = env.base_env.task
+    offsets = (task.initial_altitude - task.target).abs()
+    assert float(offsets.min()) < 3.0 and float(offsets.max()) <= 18.0
+    protocol = make_env("altitude", "airship_v7", num_envs=512, seed=0)
+    td = protocol.reset()
+    paper = (td["task", "initial_altitude"] - td["task", "target_altitude"]).abs()
+    assert float(paper.min()) >= 12.0 and float(paper.max()) <= 18.0
