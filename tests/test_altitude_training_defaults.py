@@ -66,9 +66,12 @@ def test_v7_ppo_trains_on_near_target_starts_and_covers_the_longest_ramp() -> No
     assert "env_options" not in spec.training_defaults("ppo", "volantex_ranger")
 
 
-def test_v7_ppo_training_starts_span_the_target_while_the_protocol_keeps_the_papers_offsets() -> None:
+def test_v7_ppo_training_starts_span_the_target_while_the_protocol_keeps_the_papers_offsets(
+        monkeypatch: pytest.MonkeyPatch) -> None:
     from falcon_rl.envs import make_env
-    from falcon_rl.recipes.common import make_train_env
+    from falcon_rl.evaluation import protocols
+    from falcon_rl.recipes.common import make_actor_net, make_train_env
+    from falcon_rl.recipes.evaluate import evaluate
     from falcon_rl.recipes.ppo import make_config
 
     cfg = make_config("altitude", airframe="airship_v7", num_envs=512, out=None)
@@ -81,3 +84,18 @@ def test_v7_ppo_training_starts_span_the_target_while_the_protocol_keeps_the_pap
     td = protocol.reset()
     paper = (td["task", "initial_altitude"] - td["task", "target_altitude"]).abs()
     assert float(paper.min()) >= 12.0 and float(paper.max()) <= 18.0
+
+    # The validation and the test fly the protocol's env: none of the training env options reach it.
+    built: dict = {}
+
+    class BuiltError(Exception):
+        pass
+
+    def record(*args, **kwargs):
+        built.update(kwargs)
+        raise BuiltError
+
+    monkeypatch.setattr(protocols, "make_env", record)
+    with pytest.raises(BuiltError):
+        evaluate(make_actor_net(cfg, env, scale="param"), cfg, "ppo", episodes=2)
+    assert "offset_min" not in built and built["num_envs"] == 2

@@ -330,8 +330,7 @@ RANGER_SAC: dict = {"env_options": HEAVIER_AIRSPEED_PENALTY}
 #: over three seeds (0.031-0.112 m from the last weights after 8 M). On the Airship V7, 12 M frames with
 #: gamma 0.995 gave 0.056 / 0.106 / 0.009 m on seeds 0 / 1 / 2 (8 M, gamma 0.99: 0.080 / 0.074 / 0.38 m),
 #: but its seed 0 no longer held the ground-effect study's lowest band; the V7's PPO trains with
-#: :data:`V7_PPO`.
-#: Every seed and variant tried, PPO, SAC and TD3, is in falcon_rl/policies/README.md.
+#: :data:`V7_PPO`. Every seed and variant tried, PPO, SAC and TD3, is in falcon_rl/policies/README.md.
 SPEC = register_task(TaskSpec(
     name="altitude", task=AltitudeTask, config=AltitudeConfig, gym_id="falcon_rl/Altitude-v0",
     title="Altitude acquisition and hold",
