@@ -27,7 +27,8 @@ TOL = {"rtol": 1e-5, "atol": 1e-5}
 #: Every buffer ``AltitudeTask.step`` updates.
 TASK_BUFFERS = ("time", "segment_time", "time_in_band", "error_integral", "previous_elevator",
                 "elevator_rate", "previous_action", "target", "initial_altitude", "segment_start",
-                "reference", "reference_rate", "altitude_error", "reference_error", "climb_rate")
+                "reference", "reference_rate", "altitude_error", "reference_error", "climb_rate",
+                "previous_airspeed", "airspeed_rate")
 
 
 class HeldRandomPolicy:
@@ -87,6 +88,18 @@ def test_fused_rollout_matches_the_torch_step(airframe, decimation, turbulence):
     reasons = reference["next", "termination_reason"]
     assert (reasons > 0).any(), "the rollout should see terminations"
     assert reference["next", "truncated"].any(), "the rollout should see truncations"
+
+
+def test_energy_rate_term_matches_the_torch_step_and_changes_the_reward():
+    options = {"decimation": 5, "turbulence": "moderate", "w_energy_rate": 0.5}
+    envs = {fused: altitude_env("airship_v7", fused, **options) for fused in (False, True)}
+    runs = {fused: roll(env, 300) for fused, env in envs.items()}
+    assert_same_rollout(runs[False], runs[True])
+    for name in ("previous_airspeed", "airspeed_rate"):
+        torch.testing.assert_close(getattr(envs[True].task, name), getattr(envs[False].task, name), **TOL)
+    without = roll(altitude_env("airship_v7", True, decimation=5, turbulence="moderate"), 300)
+    assert_same_rollout(without, runs[True], [("next", "observation")])
+    assert (without["next", "reward"] - runs[True]["next", "reward"]).max() > 0.01, "the term should cost"
 
 
 def test_lean_fused_env_streams_what_the_full_env_does():

@@ -25,11 +25,16 @@ Action [delta_e, delta_t] in [-1, 1]^2; aileron and rudder are held at trim.
 Reward:
 
     r = w_h exp(-e_h^2 / 2 sigma_h^2) - w_V |e_Va| / V_a* - w_q min(q^2, q_max)
-        - w_s ||a_t - a_{t-1}|| rho(e_h) + w_h kappa_h kappa_V + b_surv - w_o phi
+        - w_s ||a_t - a_{t-1}|| rho(e_h) + w_h kappa_h kappa_V + b_surv - w_o phi - w_E min(|e_E|, 4)
 
     rho(e_h)  = max(0, 1 - |e_h| / gate_band)             action-rate gate, 1 on the reference
     kappa_h   = max(0, 1 - |e_h| / capture_band)         kappa_V = max(0, 1 - |e_Va| / airspeed_band)
     phi       = max(0, sgn(h* - h_0) (h - h*))           excursion past the commanded altitude
+    e_E       = (hdot + V_a dV_a/dt / g - hdot_ref) / r  specific energy-rate error (TECS)
+
+The energy-rate term (``w_energy_rate``, 0 in the paper's reward) is what throttle alone controls: a
+pitch-up trades airspeed for height at constant total energy, so only thrust can meet a climb's energy
+rate. dV_a/dt is the airspeed's finite difference over the env step (0 on an episode's first step).
 
 Termination: ground contact, |alpha| > 1.5 alpha_stall or V_a < V_stall; truncation at the horizon.
 Published under ("task", ...): target_altitude h*, reference_altitude h_ref, reference_climb_rate,
@@ -49,7 +54,7 @@ from typing import TYPE_CHECKING
 import torch
 from tensordict import TensorDictBase
 
-from ...constants import DEG
+from ...constants import DEG, G0
 from ...physics import Simulator
 from ...physics import state as S
 from .base import Task, TaskConfig, gaussian, normalised_surfaces, taper
@@ -86,6 +91,8 @@ class AltitudeConfig(TaskConfig):
     airspeed_band_fraction: float = 0.05
     survival_bonus: float = 0.1
     w_overshoot: float = 0.1
+    #: Weight of the specific energy-rate error (module docstring; 0: the paper's reward).
+    w_energy_rate: float = 0.0
 
 
 class AltitudeTask(Task):
@@ -96,6 +103,8 @@ class AltitudeTask(Task):
     action_dim = 2
     observation_clip = 3.0
     action_channels = (S.ELEVATOR, S.THROTTLE)
+    #: Cap on |e_E| in the energy-rate penalty (a stall recovery's dV/dt would otherwise swamp the reward).
+    energy_rate_cap = 4.0
     config: AltitudeConfig
 
     def __init__(self, config: AltitudeConfig, sim: Simulator, generator: torch.Generator,
@@ -114,6 +123,8 @@ class AltitudeTask(Task):
         self.error_integral = torch.zeros(n, **kw)
         self.previous_elevator = torch.zeros(n, **kw)
         self.elevator_rate = torch.zeros(n, **kw)  # rad/s
+        self.previous_airspeed = torch.zeros(n, **kw)
+        self.airspeed_rate = torch.zeros(n, **kw)  # m/s^2
         self.reference = torch.zeros(n, **kw)
         self.reference_rate = torch.zeros(n, **kw)
         self.altitude_error = torch.zeros(n, **kw)  # h - h*
@@ -142,6 +153,8 @@ class AltitudeTask(Task):
         elevator = state["surface_position"][:, S.ELEVATOR]
         self.previous_elevator.copy_(torch.where(mask, elevator, self.previous_elevator))
         self.elevator_rate.masked_fill_(mask, 0.0)
+        self.previous_airspeed.copy_(torch.where(mask, state["airspeed"], self.previous_airspeed))
+        self.airspeed_rate.masked_fill_(mask, 0.0)
         self._update_reference()
         self.altitude_error.copy_(state["height"] - self.target)
         self.reference_error.copy_(state["height"] - self.reference)
@@ -189,6 +202,8 @@ class AltitudeTask(Task):
         elevator = state["surface_position"][:, S.ELEVATOR]
         torch.div(elevator - self.previous_elevator, self.env_dt, out=self.elevator_rate)
         self.previous_elevator.copy_(elevator)
+        torch.div(state["airspeed"] - self.previous_airspeed, self.env_dt, out=self.airspeed_rate)
+        self.previous_airspeed.copy_(state["airspeed"])
         self.error_integral.copy_((self.error_integral + (height - self.reference) * self.env_dt)
                                   .clamp(-cfg.integral_limit, cfg.integral_limit))
 
@@ -227,7 +242,14 @@ class AltitudeTask(Task):
                 + cfg.w_altitude * taper(e_h, cfg.capture_band)
                 * taper(e_v, cfg.airspeed_band_fraction * self.trim_airspeed)
                 + cfg.survival_bonus
-                - cfg.w_overshoot * past_target)
+                - cfg.w_overshoot * past_target
+                - cfg.w_energy_rate * self.energy_rate_error(state).abs().clamp(max=self.energy_rate_cap))
+
+    def energy_rate_error(self, state: TensorDictBase) -> torch.Tensor:
+        """e_E [N]: (hdot + V_a dV_a/dt / g - hdot_ref) / r, r the reference climb rate limit."""
+        climb = -state["velocity_ned"][:, S.DOWN]
+        energy_rate = climb + state["airspeed"] * self.airspeed_rate / G0
+        return (energy_rate - self.reference_rate) / self.airframe.envelope.climb_rate_limit
 
     # ------------------------------------------------------------------ fused step
     def fused_stepper(self) -> FusedStep | None:

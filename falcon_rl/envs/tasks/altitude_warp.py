@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Any
 import torch
 import warp as wp
 
-from ...constants import DEG
+from ...constants import DEG, G0
 from ...physics.warp_kernels import flush_denormals_begin, flush_denormals_end
 from .warp_common import (
     FusedStep,
@@ -59,6 +59,8 @@ class AltitudeBuffers:
     error_integral: wp.array(dtype=wp.float32)
     previous_elevator: wp.array(dtype=wp.float32)
     elevator_rate: wp.array(dtype=wp.float32)
+    previous_airspeed: wp.array(dtype=wp.float32)
+    airspeed_rate: wp.array(dtype=wp.float32)
     reference: wp.array(dtype=wp.float32)
     reference_rate: wp.array(dtype=wp.float32)
     altitude_error: wp.array(dtype=wp.float32)
@@ -94,6 +96,9 @@ class AltitudeConstants:
     airspeed_band: float  # airspeed_band_fraction x V_a*
     survival_bonus: float
     w_overshoot: float
+    w_energy_rate: float
+    energy_rate_cap: float
+    gravity: float
     stall_alpha: float
     stall_speed: float
     observation_clip: float
@@ -170,6 +175,9 @@ def altitude_step(sim: SimulatorViews, buf: AltitudeBuffers, c: AltitudeConstant
     elevator_rate = (elevator - buf.previous_elevator[i]) / dt
     buf.elevator_rate[i] = elevator_rate
     buf.previous_elevator[i] = elevator
+    airspeed_rate = (airspeed - buf.previous_airspeed[i]) / dt
+    buf.airspeed_rate[i] = airspeed_rate
+    buf.previous_airspeed[i] = airspeed
     integral = clamp_keep_nan(buf.error_integral[i] + e_h * dt, -c.integral_limit, c.integral_limit)
     buf.error_integral[i] = integral
     # reward
@@ -177,13 +185,16 @@ def altitude_step(sim: SimulatorViews, buf: AltitudeBuffers, c: AltitudeConstant
     action = buf.action[i]
     action_rate = wp.length(action - buf.previous_action[i])
     past_target = clamp_min_keep_nan(torch_sign(target - initial) * (height - target), 0.0)
+    energy_rate = -f.velocity_ned[2] + airspeed * airspeed_rate / c.gravity
+    energy_error = (energy_rate - ref[1]) / c.climb_rate_limit
     reward[i] = (c.w_altitude * gaussian_wp(e_h, c.sigma_altitude)
                  - c.w_airspeed * wp.abs(e_v) / c.trim_airspeed
                  - c.w_pitch_rate * clamp_max_keep_nan(pitch_rate * pitch_rate, c.pitch_rate_cap)
                  - c.w_smooth * action_rate * taper_wp(e_h, c.gate_band)
                  + c.w_altitude * taper_wp(e_h, c.capture_band) * taper_wp(e_v, c.airspeed_band)
                  + c.survival_bonus
-                 - c.w_overshoot * past_target)
+                 - c.w_overshoot * past_target
+                 - c.w_energy_rate * clamp_max_keep_nan(wp.abs(energy_error), c.energy_rate_cap))
     reason[i] = termination_code(f, c.stall_alpha, c.stall_speed, False)
     buf.previous_action[i] = action
     # observation, clipped
@@ -226,6 +237,7 @@ def altitude_constants(task: Task) -> Any:
         "w_pitch_rate": cfg.w_pitch_rate, "pitch_rate_cap": cfg.pitch_rate_cap, "w_smooth": cfg.w_smooth,
         "gate_band": cfg.gate_band, "airspeed_band": cfg.airspeed_band_fraction * task.trim_airspeed,
         "survival_bonus": cfg.survival_bonus, "w_overshoot": cfg.w_overshoot,
+        "w_energy_rate": cfg.w_energy_rate, "energy_rate_cap": task.energy_rate_cap, "gravity": G0,
         "stall_alpha": task.stall_alpha, "stall_speed": task.stall_speed,
         "observation_clip": task.observation_clip, "target_sequence": int(bool(cfg.target_sequence)),
     })
@@ -250,9 +262,9 @@ class FusedAltitudeStep(FusedStep):
         buf = fill_struct(AltitudeBuffers(), {
             name: getattr(task, name)
             for name in ("time", "climb_rate", "target", "initial_altitude", "segment_start", "segment_time",
-                         "time_in_band", "error_integral", "previous_elevator", "elevator_rate", "reference",
-                         "reference_rate", "altitude_error", "reference_error", "target_table",
-                         "previous_action")})
+                         "time_in_band", "error_integral", "previous_elevator", "elevator_rate",
+                         "previous_airspeed", "airspeed_rate", "reference", "reference_rate",
+                         "altitude_error", "reference_error", "target_table", "previous_action")})
         fill_struct(buf, {"action": self.action, "shift": self.shift})
         return [buf, altitude_constants(task)]
 
