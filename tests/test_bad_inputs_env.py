@@ -233,3 +233,31 @@ def test_without_the_crash_state_the_model_integrates_through_the_ground() -> No
     for _ in range(50):
         sim.step(torch.zeros(1, 4))
     assert float(sim.state["height"][0]) < 0.0 and not sim.state["crashed"].any()
+
+
+# ------------------------------------------------------------------------------ task options
+@pytest.mark.parametrize(("task", "options", "message"), [
+    ("altitude", {"episode_seconds": -1.0}, "altitude option episode_seconds must be > 0, got -1.0"),
+    ("altitude", {"sigma_altitude": 0.0}, "altitude option sigma_altitude must be > 0, got 0.0"),
+    ("altitude", {"w_airspeed": math.nan}, "altitude option w_airspeed must be a finite number, got nan"),
+    ("altitude", {"capture_band": math.inf}, "altitude option capture_band must be a finite number, got inf"),
+    ("altitude", {"w_energy_rate": "0.5"}, "w_energy_rate must be a finite number, got '0.5'"),
+    ("altitude", {"offset_min": 20.0}, "offset_min <= offset_max required, got 20.0 > 18.0"),
+    ("altitude", {"target_altitudes": ()}, "target_altitudes must be a non-empty tuple of finite numbers"),
+    ("altitude", {"target_altitudes": (10.0, -5.0)}, "target_altitudes must be > 0, got (10.0, -5.0)"),
+    ("climb_descend", {"floor": 300.0}, "floor <= ceiling required, got 300.0 > 200.0"),
+    ("attitude", {"sigma_bank": -0.1}, "attitude option sigma_bank must be > 0, got -0.1"),
+    ("path_following", {"offset_min": -1.0}, "path_following option offset_min must be >= 0, got -1.0"),
+    ("trajectory", {"bank_min": 0.6}, "bank_min <= bank_max required, got 0.6 > 0.5"),
+])
+def test_a_task_option_the_task_cannot_run_is_refused_in_one_line(task: str, options: dict, message: str):
+    with pytest.raises(ValueError, match="^[^\n]*" + message.replace("(", r"\(").replace(")", r"\)")
+                       .replace(".", r"\.") + "[^\n]*$"):
+        make_env(task, "navion", num_envs=1, **options)
+
+
+def test_the_paper_defaults_and_lists_from_json_pass_the_option_checks():
+    for task in ("altitude", "climb_descend", "attitude", "path_following", "trajectory"):
+        make_env(task, "navion", num_envs=1)
+    env = make_env("altitude", "navion", num_envs=1, target_altitudes=[30, 50], climb_rate=None, w_energy_rate=1)
+    assert list(env.task.config.target_altitudes) == [30, 50]

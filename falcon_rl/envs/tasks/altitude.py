@@ -49,7 +49,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, ClassVar
 
 import torch
 from tensordict import TensorDictBase
@@ -93,6 +93,12 @@ class AltitudeConfig(TaskConfig):
     w_overshoot: float = 0.1
     #: Weight of the specific energy-rate error (module docstring; 0: the paper's reward).
     w_energy_rate: float = 0.0
+
+    positive: ClassVar[tuple[str, ...]] = (
+        *TaskConfig.positive, "target_altitudes", "climb_rate", "capture_band", "airspeed_scale",
+        "integral_limit", "sigma_altitude", "pitch_rate_cap", "gate_band", "airspeed_band_fraction")
+    non_negative: ClassVar[tuple[str, ...]] = ("offset_min", "hold_seconds")
+    ordered: ClassVar[tuple[tuple[str, str], ...]] = (("offset_min", "offset_max"),)
 
 
 class AltitudeTask(Task):

@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, ClassVar
 
 import torch
 from tensordict import TensorDictBase
@@ -67,6 +67,10 @@ class AttitudeConfig(TaskConfig):
     w_energy: float = 2.0
     safe_airspeed_factor: float = 1.3
     w_smooth: float = 0.05
+
+    positive: ClassVar[tuple[str, ...]] = (
+        *TaskConfig.positive, "initial_height", "airspeed_scale", "sigma_bank", "sigma_climb_fraction",
+        "sigma_airspeed_fraction", "safe_airspeed_factor")
 
 
 class AttitudeTask(Task):

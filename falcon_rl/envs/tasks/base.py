@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import ClassVar, Protocol
 
 import torch
@@ -93,6 +93,40 @@ class TaskConfig:
     #: (attitude and surfaces at trim); 0, the default and the paper's start, draws nothing. In [0, 0.5].
     initial_airspeed_spread: float = 0.0
 
+    #: Number fields that must be > 0 (a None left as None) and >= 0, and (low, high) pairs that must
+    #: be ordered; :meth:`check` also requires every number of a ``float`` field to be finite.
+    positive: ClassVar[tuple[str, ...]] = ("episode_seconds", "stall_alpha_factor", "trim_airspeed")
+    non_negative: ClassVar[tuple[str, ...]] = ()
+    ordered: ClassVar[tuple[tuple[str, str], ...]] = ()
+
+    def check(self, task: str) -> None:
+        """Raise ValueError (one line: task, option, constraint, value) on a value the task cannot run."""
+        for f in fields(self):
+            value = getattr(self, f.name)
+            kind = str(f.type)
+            if "float" not in kind or (value is None and "None" in kind):
+                continue
+            many = kind.startswith("tuple")
+            numbers = value if many and isinstance(value, (tuple, list)) else (value,)
+            if not numbers or not all(_is_number(v) and math.isfinite(v) for v in numbers):
+                what = "a non-empty tuple of finite numbers" if many else "a finite number"
+                raise ValueError(f"{task} option {f.name} must be {what}, got {value!r}")
+        for names, bound, test in ((self.positive, "> 0", lambda v: v > 0),
+                                   (self.non_negative, ">= 0", lambda v: v >= 0)):
+            for name in names:
+                value = getattr(self, name)
+                values = value if isinstance(value, (tuple, list)) else (value,)
+                if value is not None and not all(test(v) for v in values):
+                    raise ValueError(f"{task} option {name} must be {bound}, got {value!r}")
+        for low, high in self.ordered:
+            if getattr(self, low) > getattr(self, high):
+                raise ValueError(f"{task} options {low} <= {high} required, got {getattr(self, low)!r} > "
+                                 f"{getattr(self, high)!r}")
+
+
+def _is_number(value: object) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
 
 class FusedTaskStep(Protocol):
     """A task's backend-fused step (e.g. ``warp_common.FusedStep``): called with the checked action
@@ -113,6 +147,7 @@ class Task(ABC):
 
     def __init__(self, config: TaskConfig, sim: Simulator, generator: torch.Generator,
                  env_dt: float, ground_effect: bool | str = True):
+        config.check(self.name)
         self.config = config
         #: Length of one env step (decimation x physics dt), s.
         self.env_dt = float(env_dt)

@@ -15,6 +15,7 @@ so most of the episode is spent tracking a moving reference; score it with ("tas
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import torch
 
@@ -35,6 +36,12 @@ class ClimbDescendConfig(AltitudeConfig):
     ceiling: float = 200.0
     rate_min: float = 0.3
     rate_max: float = 1.0
+
+    positive: ClassVar[tuple[str, ...]] = (*AltitudeConfig.positive, "start_min", "change_min", "floor",
+                                           "rate_min")
+    ordered: ClassVar[tuple[tuple[str, str], ...]] = (
+        *AltitudeConfig.ordered, ("start_min", "start_max"), ("change_min", "change_max"),
+        ("floor", "ceiling"), ("rate_min", "rate_max"))
 
 
 class ClimbDescendTask(AltitudeTask):

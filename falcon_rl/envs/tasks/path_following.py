@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, ClassVar
 
 import torch
 from tensordict import TensorDictBase
@@ -64,6 +64,12 @@ class PathFollowingConfig(TaskConfig):
     w_energy: float = 2.0
     safe_airspeed_factor: float = 1.3
     w_smooth: float = 0.05
+
+    positive: ClassVar[tuple[str, ...]] = (
+        *TaskConfig.positive, "initial_height", "max_course_error", "lost_distance", "airspeed_scale",
+        "sigma_cross_track", "sigma_course", "sigma_altitude", "safe_airspeed_factor")
+    non_negative: ClassVar[tuple[str, ...]] = ("offset_min",)
+    ordered: ClassVar[tuple[tuple[str, str], ...]] = (("offset_min", "offset_max"),)
 
 
 class PathFollowingTask(Task):

@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, ClassVar
 
 import torch
 from tensordict import TensorDictBase
@@ -68,6 +68,12 @@ class TrajectoryConfig(TaskConfig):
     w_energy: float = 2.0
     safe_airspeed_factor: float = 1.3
     w_smooth: float = 0.05
+
+    positive: ClassVar[tuple[str, ...]] = (
+        *TaskConfig.positive, "initial_height", "lead_min", "lost_distance", "airspeed_scale",
+        "sigma_position", "sigma_velocity_fraction", "safe_airspeed_factor")
+    non_negative: ClassVar[tuple[str, ...]] = ("lateral_max", "vertical_max", "bank_min", "climb_fraction")
+    ordered: ClassVar[tuple[tuple[str, str], ...]] = (("lead_min", "lead_max"), ("bank_min", "bank_max"))
 
 
 class TrajectoryTask(Task):
