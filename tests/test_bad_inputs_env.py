@@ -259,5 +259,6 @@ def test_a_task_option_the_task_cannot_run_is_refused_in_one_line(task: str, opt
 def test_the_paper_defaults_and_lists_from_json_pass_the_option_checks():
     for task in ("altitude", "climb_descend", "attitude", "path_following", "trajectory"):
         make_env(task, "navion", num_envs=1)
-    env = make_env("altitude", "navion", num_envs=1, target_altitudes=[30, 50], climb_rate=None, w_energy_rate=1)
+    env = make_env("altitude", "navion", num_envs=1, target_altitudes=[30, 50], climb_rate=None,
+                   w_energy_rate=1)
     assert list(env.task.config.target_altitudes) == [30, 50]
