@@ -33,7 +33,9 @@ def test_v7_off_policy_defaults_differ_from_the_rangers_only_in_episodes_frames_
     assert heavier["w_airspeed"] > spec.default_config().w_airspeed
     assert spec.training_defaults("td3", "airship_v7")["env_options"] == heavier
     assert spec.training_defaults("sac", "volantex_ranger")["env_options"] == heavier
-    assert "env_options" not in spec.training_defaults("sac", "airship_v7")  # SAC on the V7 keeps 0.5
+    # SAC on the V7 keeps the airspeed weight 0.5 and adds the energy-rate penalty
+    assert spec.training_defaults("sac", "airship_v7")["env_options"] == {"w_energy_rate": 0.5}
+    assert spec.default_config().w_energy_rate == 0.0  # the paper's reward
     assert "env_options" not in spec.training_defaults("td3", "volantex_ranger")
 
 
@@ -45,6 +47,17 @@ def test_v7_td3_env_options_build_the_training_env() -> None:
     env = make_train_env(cfg)
     assert env.base_env.task.config.w_airspeed == 2.0
     assert env.base_env.task.config.survival_bonus == 1.0  # the task's training defaults stay underneath
+
+
+def test_v7_sac_trains_with_the_energy_rate_penalty_and_scores_without() -> None:
+    from falcon_rl.envs import make_env
+    from falcon_rl.recipes.common import make_train_env
+    from falcon_rl.recipes.sac import make_config
+
+    cfg = make_config("altitude", airframe="airship_v7", num_envs=2, out=None)
+    config = make_train_env(cfg).base_env.task.config
+    assert (config.w_energy_rate, config.w_airspeed, config.episode_seconds) == (0.5, 0.5, 40.0)
+    assert make_env("altitude", "airship_v7", num_envs=1).task.config.w_energy_rate == 0.0
 
 
 def test_env_options_given_merge_into_the_recipes() -> None:
