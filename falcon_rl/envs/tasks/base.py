@@ -111,6 +111,9 @@ class TaskConfig:
             if not numbers or not all(_is_number(v) and math.isfinite(v) for v in numbers):
                 what = "a non-empty tuple of finite numbers" if many else "a finite number"
                 raise ValueError(f"{task} option {f.name} must be {what}, got {value!r}")
+        if not 0.0 <= self.initial_airspeed_spread <= 0.5:
+            raise ValueError(f"{task} option initial_airspeed_spread must be a number in [0, 0.5], "
+                             f"got {self.initial_airspeed_spread!r}")
         for names, bound, test in ((self.positive, "> 0", lambda v: v > 0),
                                    (self.non_negative, ">= 0", lambda v: v >= 0)):
             for name in names:
@@ -162,9 +165,6 @@ class Task(ABC):
         self.trim = trim_point(sim, self.trim_airspeed, ground_effect=ground_effect)
         self.stall_speed = float(env.stall_speed)
         self.stall_alpha = float(config.stall_alpha_factor * self.airframe.aero.alpha_stall)
-        spread = config.initial_airspeed_spread
-        if not (isinstance(spread, (int, float)) and 0.0 <= spread <= 0.5):
-            raise ValueError(f"initial_airspeed_spread must be a number in [0, 0.5], got {spread!r}")
         n = self.num_envs
         #: Full simulator command, trim in the channels the action does not drive. [N, 4]
         self.command_buffer = self.trim.command.expand(n, 4).clone()
