@@ -3,6 +3,7 @@
     falcon-rl train ppo --task altitude --airframe volantex_ranger --out runs/ppo_altitude
     falcon-rl train ppo --task altitude --out runs/ppo_altitude --resume      # continue a killed run
     falcon-rl train ppo --task altitude --out runs/ppo_altitude --resume-if-present   # job scripts
+    falcon-rl train ppo --task altitude --stop-when "survival>=1,acquisition>=0.95,rmse_m<=0.5"
 
 Writes ``checkpoint.pt`` (resumable), ``policy.pt`` (for ``falcon-rl eval --controller PATH``),
 ``policy.ts`` (TorchScript), ``summary.json`` and logs under ``--out``. The same flags and ``--seed``
@@ -55,6 +56,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--eval-every", type=nonnegative_int, default=None,
                         help="frames between validations (0: only the final evaluation); with the "
                              "recipe field keep_best the best validated snapshot is shipped")
+    parser.add_argument("--stop-when", default=None, metavar="CONDITIONS",
+                        help="stop at the first validation meeting every condition, e.g. "
+                             "\"survival>=1,acquisition>=0.95,rmse_m<=0.5\" (the task protocol's metrics, "
+                             "averaged over its cases); needs validations (--eval-every)")
     parser.add_argument("--eval-episodes", type=nonnegative_int, default=None,
                         help="episodes of the final evaluation")
     parser.add_argument("--threads", type=positive_int, default=None, help="torch CPU threads (default 1)")
@@ -88,7 +93,8 @@ def _config(recipe, args: argparse.Namespace, out: str, overrides: dict):
     flags = {"airframe": args.airframe, "num_envs": args.envs, "frames": args.frames, "device": args.device,
              "backend": args.backend, "seed": args.seed, "out": out, "resume": args.resume,
              "logger": args.logger, "eval_every": args.eval_every, "final_eval_episodes": args.eval_episodes,
-             "threads": args.threads, "progress": not args.no_progress and not args.json}
+             "threads": args.threads, "progress": not args.no_progress and not args.json,
+             "stop_when": args.stop_when}
     try:
         cfg = recipe.make_config(args.task, **{**flags, **overrides})
     except TypeError as exc:  # an unknown --set field
@@ -117,6 +123,10 @@ def run(args: argparse.Namespace) -> int:
     lines = [f"{args.algorithm} on {args.task} / {args.airframe}: {summary['frames']:,} frames in "
              f"{summary['wall_seconds']:.0f} s ({summary['env_steps_per_s']:,.0f} env-steps/s "
              "incl. learning)"]
+    if "solved" in summary:
+        solved = summary["solved"]
+        lines.append("stop_when not met" if solved is None else
+                     f"stop_when met at {solved['frames']:,} frames, {solved['wall_seconds']:.0f} s")
     for key in ("policy", "torchscript", "checkpoint"):
         if key in summary:
             lines.append(f"{key}: {summary[key]}")

@@ -15,6 +15,7 @@ from dataclasses import fields
 from ..envs import task_spec
 from ..policies.format import ACTIVATIONS, MAX_LAYERS, MAX_PARAMETERS, MAX_WIDTH
 from .logging import LOGGERS
+from .selection import parse_stop_when
 
 #: Largest count a field takes; frame counts may be larger.
 MAX_COUNT = 10**9
@@ -120,6 +121,12 @@ def check_config(cfg: object) -> None:
                          "are summed within one collected batch")
     if buffer_size is not None and batch_size > buffer_size:
         raise ValueError(f"batch_size ({batch_size}) must not exceed buffer_size ({buffer_size})")
+    stop_when = getattr(cfg, "stop_when", "")
+    if stop_when:
+        parse_stop_when(stop_when, [m.key for m in task_spec(cfg.task).metrics])  # type: ignore[attr-defined]
+        if not (cfg.eval_every and cfg.eval_episodes):  # type: ignore[attr-defined]
+            raise ValueError("stop_when needs eval_every > 0 and eval_episodes > 0 (the validations it "
+                             "is checked on)")
     if getattr(cfg, "keep_best", False):
         if not (cfg.eval_every and cfg.eval_episodes):  # type: ignore[attr-defined]
             raise ValueError("keep_best needs eval_every > 0 and eval_episodes > 0 (the validation "

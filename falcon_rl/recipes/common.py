@@ -80,6 +80,11 @@ class TrainConfig:
     #: Ship the best of the periodic evaluations' snapshots and the last weights, scored on validation
     #: episodes (:mod:`falcon_rl.recipes.selection`), instead of the last weights; needs ``eval_every``.
     keep_best: bool = False
+    #: Stop training at the first validation that meets every condition, e.g.
+    #: ``"survival>=1,acquisition>=0.95,rmse_m<=0.5"`` (metrics of the task's protocol, each averaged
+    #: over its cases; :func:`falcon_rl.recipes.selection.parse_stop_when`); needs ``eval_every``.
+    #: "" trains all ``frames``.
+    stop_when: str = ""
     #: Episodes of the periodic evaluation and of the final one (on the task's protocol: per maneuver on
     #: the attitude protocol), and their length, s (None: the protocol's own, 30 s on altitude).
     eval_episodes: int = 16

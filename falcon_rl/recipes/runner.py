@@ -20,7 +20,9 @@ Evaluations: every ``eval_every`` frames the current weights fly the task's prot
 episodes (seed + ``VALIDATION_SEED``); with ``keep_best`` the run ships the best of those snapshots
 and its last weights (:mod:`.selection`; the checkpoint keeps the best so far and the last weights,
 to go on training from). The final evaluation flies the shipped policy on the test episodes (seed +
-``EVAL_SEED``), which no choice of the run has seen.
+``EVAL_SEED``), which no choice of the run has seen. With ``stop_when`` the run ends at the first
+validation that meets its conditions (``summary["solved"]``: the frames and wall seconds it took); a
+checkpoint remembers it, so resuming a solved run with the same conditions only finishes it.
 """
 
 from __future__ import annotations
@@ -53,7 +55,7 @@ from .common import (
 )
 from .evaluate import eval_scalars, evaluate
 from .logging import Progress, log_scalars, make_logger
-from .selection import VALIDATION_SEED, BestPolicy
+from .selection import VALIDATION_SEED, BestPolicy, conditions_met, parse_stop_when
 
 #: Files a run writes under ``out`` (each through ``<name>.tmp``).
 OUTPUT_FILES = ("checkpoint.pt", "policy.pt", "policy.ts", "summary.json")
@@ -105,6 +107,10 @@ class TrainingRun:
         self.final_eval = None
         #: The best validated snapshot so far (``keep_best``; the metric is checked by check_config).
         self.best = BestPolicy(task_spec(cfg.task).select_on or "") if cfg.keep_best else None
+        #: ``stop_when``'s conditions, and the validation that met them: {"frames", "wall_seconds",
+        #: "summary"} (None until then).
+        self.stop_conditions = parse_stop_when(cfg.stop_when, [m.key for m in task_spec(cfg.task).metrics])
+        self.solved: dict | None = None
 
     # ------------------------------------------------------------------ files
     @property
@@ -126,14 +132,25 @@ class TrainingRun:
             saved_best = doc.get("extra", {}).get("best")
             if self.best is not None and saved_best is not None:  # None: a run that kept no best
                 self.best.load(saved_best, path)
+            self.solved = self._saved_solved(doc.get("extra", {}).get("solved"), path)
         self.logger = make_logger(self.cfg.logger, self.out, self.name, self.cfg.to_dict())
         self.stats = EpisodeStats(frames_at_start=self.counters.frames)
         self.progress = Progress(self.cfg.frames, self.counters.frames, self.name, self.cfg.progress)
         self._t0 = time.perf_counter() - self.counters.wall_seconds
         return self.counters
 
+    def _saved_solved(self, saved: object, path) -> dict | None:
+        """The checkpoint's solved entry when this run's conditions still hold for its summary."""
+        if saved is None:
+            return None
+        if not (isinstance(saved, dict) and type(saved.get("frames")) is int
+                and isinstance(saved.get("wall_seconds"), float) and isinstance(saved.get("summary"), dict)):
+            raise FileFormatError(path, "damaged solved entry in the checkpoint")
+        return dict(saved) if conditions_met(saved["summary"], self.stop_conditions) else None
+
     def remaining_frames(self) -> int:
-        return max(self.cfg.frames - self.counters.frames, 0)
+        """Frames still to collect: none once ``stop_when`` is met."""
+        return 0 if self.solved is not None else max(self.cfg.frames - self.counters.frames, 0)
 
     def segment_frames(self, batch_frames: int) -> int:
         """Frames of the next collection segment: whole batches up to the next checkpoint or the end."""
@@ -154,7 +171,10 @@ class TrainingRun:
                                   auto_register_policy_transforms=False)
             stagger_episodes(self.env, self.cfg.seed + self.counters.iterations)
             try:
-                yield from collector
+                for batch in collector:
+                    yield batch
+                    if self.solved is not None:  # stop_when met at the validation after this batch
+                        break
             finally:
                 collector.shutdown()
 
@@ -164,11 +184,13 @@ class TrainingRun:
         if self.checkpoint_path is None:
             return None
         self.counters.wall_seconds = time.perf_counter() - self._t0
+        extra = {} if self.best is None else {"best": self.best.state()}
+        if self.solved is not None:
+            extra["solved"] = self.solved
         return save_checkpoint(self.checkpoint_path, algorithm=self.algorithm, config=self.cfg.to_dict(),
                                counters=dataclasses.asdict(self.counters), modules=self.modules,
                                optimizers=self.optimizers, norm=self.actor.norm.stats(), env=self.env,
-                               replay=self.replay,
-                               extra=None if self.best is None else {"best": self.best.state()})
+                               replay=self.replay, extra=extra)
 
     # ------------------------------------------------------------------ per batch
     def after_batch(self, batch, scalars: dict[str, float]) -> None:
@@ -187,7 +209,8 @@ class TrainingRun:
         if cfg.eval_every and c.frames - c.last_eval_frames >= cfg.eval_every and c.frames < cfg.frames:
             c.last_eval_frames = c.frames
             self.validate()
-        if c.frames - c.last_checkpoint_frames >= cfg.checkpoint_every and c.frames < cfg.frames:
+        if self.solved is None and c.frames - c.last_checkpoint_frames >= cfg.checkpoint_every \
+                and c.frames < cfg.frames:
             self.save()
 
     def validate(self) -> None:
@@ -200,8 +223,13 @@ class TrainingRun:
             return
         kept = self.best is not None and self.best.offer(policy_document(self.actor, self.meta()),
                                                          result.summary, c.frames)
-        self.progress.write(f"[{c.frames:,} frames] validation: " + ", ".join(
+        wall = time.perf_counter() - self._t0
+        self.progress.write(f"[{c.frames:,} frames, {wall:.0f} s] validation: " + ", ".join(
             f"{k} {v:.3g}" for k, v in result.summary.items()) + (" (best so far)" if kept else ""))
+        if self.solved is None and conditions_met(result.summary, self.stop_conditions):
+            self.solved = {"frames": c.frames, "wall_seconds": wall, "summary": dict(result.summary)}
+            self.progress.write(f"[{c.frames:,} frames, {wall:.0f} s] stop_when met ("
+                                + ", ".join(map(str, self.stop_conditions)) + "): training ends here")
 
     # ------------------------------------------------------------------ end
     def meta(self) -> dict:
@@ -213,7 +241,8 @@ class TrainingRun:
         """Final checkpoint, policy file (the best snapshot with ``keep_best``, else the last weights),
         TorchScript export and evaluation; returns a summary."""
         if self.best is not None and self.best.doc is not None:  # a run too short to validate ships its last
-            self.validate()  # the last weights compete with the snapshots
+            if self.counters.last_eval_frames != self.counters.frames:  # solved: validated already
+                self.validate()  # the last weights compete with the snapshots
             shipped = self.best.doc
         else:
             shipped = policy_document(self.actor, self.meta())
@@ -227,6 +256,8 @@ class TrainingRun:
                    "train_return": self.stats.mean_return, "train_survival": self.stats.survival}
         if self.best is not None and self.best.doc is not None:
             summary.update(selected_frames=self.best.frames, validation=self.best.summary)
+        if self.stop_conditions:
+            summary["solved"] = self.solved
         checkpoint = self.save()  # the last weights, to continue training from
         if self.out is not None:
             summary["checkpoint"] = str(checkpoint)

@@ -13,11 +13,21 @@ NaN gate as 0 and a NaN metric as +inf.
     best = BestPolicy("rmse_m")
     best.offer(policy_document(net, meta), result.summary, frames)   # True when it is the new best
     best.doc, best.frames, best.score
+
+Stopping when solved (``stop_when``): a run ends at the first validation whose summary meets every
+condition, each metric averaged over the protocol's cases as the score averages it:
+
+    conditions = parse_stop_when("survival>=1,acquisition>=0.95,rmse_m<=0.5", ["survival", ...])
+    conditions_met(result.summary, conditions)   # True: stop training here
 """
 
 from __future__ import annotations
 
 import math
+import operator
+import re
+from collections.abc import Iterable
+from dataclasses import dataclass
 
 from ..policies.format import FileFormatError, check_policy_document
 
@@ -43,6 +53,59 @@ def selection_score(summary: dict[str, float], metric: str) -> tuple[float, ...]
     value = _mean_of(summary, metric)
     return (*(-1.0 if g is None else 0.0 if math.isnan(g) else -g for g in gates),
             math.inf if value is None or math.isnan(value) else value)
+
+
+#: Comparisons a stop condition may use.
+STOP_OPERATORS = {">=": operator.ge, "<=": operator.le}
+_CONDITION = re.compile(r"^\s*([A-Za-z_][\w]*)\s*(>=|<=)\s*(\S+)\s*$")
+
+
+@dataclass(frozen=True)
+class StopCondition:
+    """``metric op bound``, e.g. ``rmse_m <= 0.5``; met by a summary whose case mean of ``metric``
+    is a number that satisfies it (a missing or NaN value never meets it)."""
+
+    metric: str
+    op: str
+    bound: float
+
+    def met(self, summary: dict[str, float]) -> bool:
+        value = _mean_of(summary, self.metric)
+        return value is not None and not math.isnan(value) and STOP_OPERATORS[self.op](value, self.bound)
+
+    def __str__(self) -> str:
+        return f"{self.metric}{self.op}{self.bound:g}"
+
+
+def parse_stop_when(text: str, metrics: Iterable[str]) -> tuple[StopCondition, ...]:
+    """Conditions of ``"metric>=bound,metric<=bound,..."`` over the protocol's ``metrics`` (summary
+    keys without their case prefix); ``""`` gives none. One-line ValueError naming the part that is
+    not ``metric>=number`` or ``metric<=number``, an unknown metric or a non-finite bound."""
+    known = list(metrics)
+    conditions = []
+    for part in filter(str.strip, text.split(",")):
+        match = _CONDITION.match(part)
+        if match is None:
+            raise ValueError(f"stop_when: {part.strip()!r} is not METRIC>=NUMBER or METRIC<=NUMBER")
+        metric, op, number = match.groups()
+        if metric not in known:
+            raise ValueError(f"stop_when: unknown metric {metric!r}; the protocol reports {known}")
+        try:
+            bound = float(number)
+        except ValueError:
+            bound = math.nan
+        if not math.isfinite(bound):
+            raise ValueError(f"stop_when: the bound of {metric} must be a finite number, got {number!r}")
+        conditions.append(StopCondition(metric, op, bound))
+    if text.strip() and not conditions:
+        raise ValueError(f"stop_when: no condition in {text!r}")
+    return tuple(conditions)
+
+
+def conditions_met(summary: dict[str, float], conditions: Iterable[StopCondition]) -> bool:
+    """Whether ``summary`` meets every one of ``conditions`` (False when there are none)."""
+    conditions = tuple(conditions)
+    return bool(conditions) and all(c.met(summary) for c in conditions)
 
 
 class BestPolicy:
@@ -82,4 +145,5 @@ class BestPolicy:
         self.score = tuple(float(v) for v in state["score"])
 
 
-__all__ = ["GATES", "VALIDATION_SEED", "BestPolicy", "selection_score"]
+__all__ = ["GATES", "STOP_OPERATORS", "VALIDATION_SEED", "BestPolicy", "StopCondition", "conditions_met",
+           "parse_stop_when", "selection_score"]
