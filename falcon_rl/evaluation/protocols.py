@@ -86,11 +86,12 @@ class ProtocolResult:
 
 def _rollout(env: FixedWingEnv, policy: TensorDictModuleBase, steps: int, label: str
              ) -> tuple[TensorDictBase, float]:
-    """Roll ``steps`` env steps with a progress bar; returns (rollout [N, T], s per policy call)."""
+    """Roll ``steps`` env steps with a progress bar (on a terminal; none in a log file); returns
+    (rollout [N, T], s per policy call)."""
     td = env.reset()
     frames, policy_seconds = [], 0.0
     with torch.no_grad():
-        for _ in tqdm(range(steps), desc=label, unit="step", leave=False, mininterval=1.0):
+        for _ in tqdm(range(steps), desc=label, unit="step", leave=False, mininterval=1.0, disable=None):
             t0 = time.perf_counter()
             td = policy(td)
             policy_seconds += time.perf_counter() - t0
