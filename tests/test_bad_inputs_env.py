@@ -262,3 +262,19 @@ def test_the_paper_defaults_and_lists_from_json_pass_the_option_checks():
     env = make_env("altitude", "navion", num_envs=1, target_altitudes=[30, 50], climb_rate=None,
                    w_energy_rate=1)
     assert list(env.task.config.target_altitudes) == [30, 50]
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+def test_finite_rows_flags_exactly_the_rows_with_a_nan_or_an_infinity(dtype: torch.dtype) -> None:
+    from falcon_rl.envs.fixed_wing import finite_rows
+
+    generator = torch.Generator().manual_seed(0)
+    values = torch.randn(64, 39, generator=generator, dtype=dtype) * 10.0 ** torch.randint(
+        -30, 30, (64, 39), generator=generator).to(dtype)
+    largest = torch.finfo(dtype).max
+    values[0, 0], values[1, 5], values[2, 38], values[3, 7] = math.nan, math.inf, -math.inf, -0.0
+    values[4] = largest  # a row of the largest numbers: finite, and nothing may overflow
+    values[5, :2] = torch.tensor([largest, -largest], dtype=dtype)
+    expected = torch.isfinite(values).all(-1)
+    assert torch.equal(finite_rows(values), expected)
+    assert expected[3:].all() and not expected[:3].any()
