@@ -153,7 +153,8 @@ def train_target(args: argparse.Namespace) -> list[Target]:
         subprocess.run(command, check=True)
         wall = time.perf_counter() - start
         summary = json.loads((Path(folder) / "summary.json").read_text())
-    (args.out / "train_summary.json").write_text(json.dumps(summary, indent=1) + "\n")
+    kept = {k: v for k, v in summary.items() if k not in ("checkpoint", "policy", "torchscript")}  # gone
+    (args.out / "train_summary.json").write_text(json.dumps(kept, indent=1) + "\n")
     test, solved = summary["eval"], summary["solved"] or {}
     met = conditions_met(test, parse_stop_when(SOLVED, [m.key for m in task_spec("altitude").metrics]))
     note = (f"solved on validation at {solved.get('frames', 0):,} frames, "
