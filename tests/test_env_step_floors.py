@@ -6,31 +6,15 @@ the last step's values at every step; the floor with new outputs keeps every ste
 
 from __future__ import annotations
 
-import functools
-import importlib.util
-import sys
 from dataclasses import asdict
-from pathlib import Path
 
 import torch
 from tensordict import TensorDict
 
-BENCHMARK = Path(__file__).resolve().parents[1] / "benchmarks" / "env_step.py"
 
-
-@functools.cache
-def _benchmark_module():
-    spec = importlib.util.spec_from_file_location("env_step_benchmark", BENCHMARK)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # its dataclasses look their module up
-    spec.loader.exec_module(module)
-    return module
-
-
-def _counting_rollout(new_outputs: bool) -> torch.Tensor:
-    """Observations [T] of a 4-step rollout of a floor whose observation counts the steps."""
-    bench = _benchmark_module()
+def _counting_rollout(bench, new_outputs: bool) -> torch.Tensor:
+    """Observations [T] of a 4-step rollout of a floor (``benchmarks/env_step.py``'s) whose observation
+    counts the steps."""
     env = bench.TrivialEnv(1, 3, 2, "cpu", new_outputs=new_outputs)
     step = env._step
 
@@ -42,13 +26,14 @@ def _counting_rollout(new_outputs: bool) -> torch.Tensor:
     return env.rollout(4)["next", "observation"][0, :, 0]
 
 
-def test_the_preallocated_floor_aliases_its_steps_and_the_new_outputs_floor_keeps_them():
-    assert _counting_rollout(new_outputs=False).tolist() == [4.0, 4.0, 4.0, 4.0]
-    assert _counting_rollout(new_outputs=True).tolist() == [1.0, 2.0, 3.0, 4.0]
+def test_the_preallocated_floor_aliases_its_steps_and_the_new_outputs_floor_keeps_them(benchmark_script):
+    bench = benchmark_script("env_step")
+    assert _counting_rollout(bench, new_outputs=False).tolist() == [4.0, 4.0, 4.0, 4.0]
+    assert _counting_rollout(bench, new_outputs=True).tolist() == [1.0, 2.0, 3.0, 4.0]
 
 
-def test_ratios_to_both_floors_are_in_the_table():
-    bench = _benchmark_module()
+def test_ratios_to_both_floors_are_in_the_table(benchmark_script):
+    bench = benchmark_script("env_step")
     cases = {label: bench.EnvStepCase("env", "warp", "cpu", 1, 10, 1, label=label)
              for label in ("physics", "torchrl floor", "torchrl floor (new outputs)", "env lean")}
     for case, seconds in zip(cases.values(), (1e-5, 4e-5, 5e-5, 7e-5), strict=True):

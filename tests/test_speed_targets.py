@@ -4,35 +4,22 @@ speed."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import math
-import sys
 from pathlib import Path
 
 import pytest
 
-BENCHMARK = Path(__file__).resolve().parents[1] / "benchmarks" / "speed_targets.py"
 
-
-def _module():
-    spec = importlib.util.spec_from_file_location("speed_targets_benchmark", BENCHMARK)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # its dataclasses look their module up
-    spec.loader.exec_module(module)
-    return module
-
-
-def test_a_target_is_met_when_its_median_reaches_it():
-    bench = _module()
+def test_a_target_is_met_when_its_median_reaches_it(benchmark_script):
+    bench = benchmark_script("speed_targets")
     assert bench.Target("a", 0.8, "", 0.8, "x").met and not bench.Target("b", 0.79, "", 0.8, "x").met
 
 
-def test_every_target_is_measured_and_written(tmp_path: Path, capsys):
+def test_every_target_is_measured_and_written(tmp_path: Path, capsys, benchmark_script):
     pytest.importorskip("jsbsim")
     pytest.importorskip("stable_baselines3")
-    bench = _module()
+    bench = benchmark_script("speed_targets")
     code = bench.main(["--trials", "1", "--envs", "8", "--vector-envs", "8", "--out", str(tmp_path),
                        "--no-progress"])
     doc = json.loads((tmp_path / "speed_targets.json").read_text())
