@@ -49,10 +49,8 @@ import gym_throughput
 
 from falcon_rl.bench import _cpu_name
 from falcon_rl.envs import task_spec
+from falcon_rl.envs.tasks.altitude import ALTITUDE_SOLVED
 from falcon_rl.recipes.selection import conditions_met, parse_stop_when
-
-#: The ``--train`` command's success conditions (the protocol's, on 100 test episodes).
-SOLVED = "survival>=1,acquisition>=0.95,rmse_m<=0.5"
 
 
 @dataclass
@@ -146,8 +144,8 @@ def train_target(args: argparse.Namespace) -> list[Target]:
     the whole command (its 100-episode test included) and the test's RMSE."""
     with tempfile.TemporaryDirectory() as folder:  # the run's checkpoint and policy are not kept
         command = [sys.executable, "-m", "falcon_rl.cli", "train", "ppo", "--task", "altitude", "--airframe",
-                   "volantex_ranger", "--seed", str(args.seed), "--stop-when", SOLVED, "--out", folder,
-                   "--logger", "none", "--no-progress"]
+                   "volantex_ranger", "--seed", str(args.seed), "--stop-when", ALTITUDE_SOLVED, "--out",
+                   folder, "--logger", "none", "--no-progress"]
         print("training:", " ".join(command[2:]), flush=True)
         start = time.perf_counter()
         subprocess.run(command, check=True)
@@ -156,7 +154,8 @@ def train_target(args: argparse.Namespace) -> list[Target]:
     kept = {k: v for k, v in summary.items() if k not in ("checkpoint", "policy", "torchscript")}  # gone
     (args.out / "train_summary.json").write_text(json.dumps(kept, indent=1) + "\n")
     test, solved = summary["eval"], summary["solved"] or {}
-    met = conditions_met(test, parse_stop_when(SOLVED, [m.key for m in task_spec("altitude").metrics]))
+    metrics = [m.key for m in task_spec("altitude").metrics]
+    met = conditions_met(test, parse_stop_when(ALTITUDE_SOLVED, metrics))
     note = (f"solved on validation at {solved.get('frames', 0):,} frames, "
             f"{solved.get('wall_seconds', 0):.0f} s; "
             f"100-episode test: survival {test['survival']:.2f}, acquisition {test['acquisition']:.2f}, "

@@ -87,3 +87,17 @@ def test_a_resumed_solved_run_only_finishes_and_unmet_conditions_train_every_fra
     assert main(train_argv("ppo", out, 256, *VALIDATE, "--stop-when", "survival>=2", "--resume")) == 0
     summary = json.loads((out / "summary.json").read_text())
     assert summary["frames"] == 256 and summary["solved"] is None
+
+
+def test_demo_train_stops_when_the_altitude_protocol_is_solved(tmp_path: Path):
+    from falcon_rl.cli import build_parser
+    from falcon_rl.commands.demo import training_config
+    from falcon_rl.envs.tasks.altitude import ALTITUDE_SOLVED
+
+    args = build_parser().parse_args(["demo", "--train", "--frames", "2000000", "--out", str(tmp_path)])
+    cfg = training_config(args, tmp_path)
+    check_config(cfg)
+    assert cfg.stop_when == ALTITUDE_SOLVED and cfg.frames == 2_000_000 and cfg.eval_every > 0
+    assert parse_stop_when(ALTITUDE_SOLVED, ALTITUDE) == (
+        StopCondition("survival", ">=", 1.0), StopCondition("acquisition", ">=", 0.95),
+        StopCondition("rmse_m", "<=", 0.5))

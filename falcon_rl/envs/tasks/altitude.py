@@ -301,6 +301,10 @@ ALTITUDE_METRICS: tuple[Metric, ...] = (
     Metric("survival", "Surv."), Metric("acquisition", "Acq."), Metric("rmse_m", "RMSE", "m"),
     Metric("settling_time_s", "t_s", "s"), Metric("overshoot_m", "Over.", "m"))
 
+#: "Solved" on the altitude protocol, as a recipe's ``stop_when``: every episode survives, >= 95 % acquire
+#: the target band and the RMSE after acquisition is <= 0.5 m (``falcon-rl demo --train`` stops there).
+ALTITUDE_SOLVED = "survival>=1,acquisition>=0.95,rmse_m<=0.5"
+
 #: The off-policy critics of the altitude task: 5-step returns and layer norm in the critics. With
 #: one-step targets and plain critics (the recipes' defaults) neither SAC nor TD3 settled on the Ranger
 #: (validation RMSE moving 0.35-1.9 m between snapshots up to 500 k frames; a slow, badly damped capture
