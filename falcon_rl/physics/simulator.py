@@ -377,7 +377,9 @@ class Simulator:
         x = self.x.clone()  # one copy; the fields are views of it (and of one copy of the derived state)
         columns = self.engine.derived().clone()
         derived = split_derived(columns, copy=False)
-        return TensorDict(
+        # Every entry is an [N, ...] tensor of this simulator's device by construction: the unchecked
+        # constructor skips TensorDict's per-entry validation (~0.15 ms of a one-env state).
+        return TensorDict._new_unsafe(
             {
                 "position_ned": x[:, S.POSITION],
                 "quaternion": x[:, S.QUATERNION],
