@@ -185,6 +185,16 @@ def time_jsbsim_round(args: argparse.Namespace, decimation: int) -> float:
     return bench.env_steps_per_s / decimation
 
 
+def time_round(cases: list[tuple[Case, Block]], jsbsim: Case, args: argparse.Namespace,
+               decimation: int) -> None:
+    """One timed round: JSBSim's block, then one block of every case, each rate appended to its case."""
+    jsbsim.rates.append(time_jsbsim_round(args, decimation))
+    for case, block in cases:
+        start = time.perf_counter()
+        block(case.steps)
+        case.rates.append(case.num_envs * case.steps / (time.perf_counter() - start))
+
+
 def paired(case: Case, reference: Case | None) -> str:
     """Median over the rounds of ``case``'s rate over ``reference``'s in the same round ("-" without a
     reference): load drifting between rounds cancels out."""
@@ -236,11 +246,7 @@ def main() -> None:
     jsbsim = Case(f"JSBSim c172p ({decimation} FGFDMExec.run() per step)", 1, "jsbsim")
     for round_index in range(args.repeats):
         print(f"round {round_index + 1}/{args.repeats}", flush=True)
-        jsbsim.rates.append(time_jsbsim_round(args, decimation))
-        for case, block in cases:
-            start = time.perf_counter()
-            block(case.steps)
-            case.rates.append(case.num_envs * case.steps / (time.perf_counter() - start))
+        time_round(cases, jsbsim, args, decimation)
     table = report([case for case, _ in cases], jsbsim)
     print(table)
     if args.json:

@@ -110,18 +110,14 @@ def gym_targets(args: argparse.Namespace) -> list[Target]:
     gym_args = argparse.Namespace(task="altitude", airframe="volantex_ranger", envs=args.vector_envs,
                                   backend="warp", device="cpu", seconds=0.25, jsbsim_runs=10000,
                                   decimation=args.gym_decimation)
-    cases = {case.label + f" {case.num_envs}": (case, block)
-             for case, block in gym_throughput.build(gym_args, args.gym_decimation)}
-    single, _ = cases["gymnasium.make (wrappers) fast path 1"]
-    vector, _ = cases[f"FalconVectorEnv fast path {args.vector_envs}"]
-    floor, _ = cases[f"physics: Simulator.step(substeps={args.gym_decimation}) {args.vector_envs}"]
+    built = gym_throughput.build(gym_args, args.gym_decimation)
+    cases = {f"{case.label} {case.num_envs}": case for case, _ in built}
+    single = cases["gymnasium.make (wrappers) fast path 1"]
+    vector = cases[f"FalconVectorEnv fast path {args.vector_envs}"]
+    floor = cases[f"physics: Simulator.step(substeps={args.gym_decimation}) {args.vector_envs}"]
     jsbsim = gym_throughput.Case("JSBSim c172p", 1, "jsbsim")
     for _ in tqdm(range(args.trials), desc="gymnasium", disable=args.no_progress, file=sys.stderr):
-        jsbsim.rates.append(gym_throughput.time_jsbsim_round(gym_args, args.gym_decimation))
-        for case, block in cases.values():
-            start = time.perf_counter()
-            block(case.steps)
-            case.rates.append(case.num_envs * case.steps / (time.perf_counter() - start))
+        gym_throughput.time_round(built, jsbsim, gym_args, args.gym_decimation)
 
     def spread(case: gym_throughput.Case) -> str:
         return f"{min(case.rates):,.0f}-{max(case.rates):,.0f}"
@@ -154,8 +150,7 @@ def train_target(args: argparse.Namespace) -> list[Target]:
     kept = {k: v for k, v in summary.items() if k not in ("checkpoint", "policy", "torchscript")}  # gone
     (args.out / "train_summary.json").write_text(json.dumps(kept, indent=1) + "\n")
     test, solved = summary["eval"], summary["solved"] or {}
-    metrics = [m.key for m in task_spec("altitude").metrics]
-    met = conditions_met(test, parse_stop_when(ALTITUDE_SOLVED, metrics))
+    met = conditions_met(test, parse_stop_when(ALTITUDE_SOLVED, task_spec("altitude").metric_keys))
     note = (f"solved on validation at {solved.get('frames', 0):,} frames, "
             f"{solved.get('wall_seconds', 0):.0f} s; "
             f"100-episode test: survival {test['survival']:.2f}, acquisition {test['acquisition']:.2f}, "

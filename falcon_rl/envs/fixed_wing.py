@@ -369,11 +369,11 @@ class FixedWingEnv(EnvBase):
         if fused is None:
             state = self.sim.state
             observation, reward, reason = self.task.step(state, action)
-            finite = _finite_rows(state, observation, reward)
+            finite = _finite_step_rows(state, observation, reward)
         else:
             observation, reward, reason = fused
             state = self.sim.state if with_state and not self.config.lean else None
-            finite = (_finite_rows(state, observation, reward) if state is not None
+            finite = (_finite_step_rows(state, observation, reward) if state is not None
                       else self._finite_buffers(observation, reward))
         self.step_count += 1
         truncated = self.step_count >= self.max_episode_steps
@@ -545,7 +545,7 @@ def finite_rows(values: torch.Tensor) -> torch.Tensor:
     return (values - values).sum(-1) == 0
 
 
-def _finite_rows(state: TensorDictBase, observation: torch.Tensor, reward: torch.Tensor) -> torch.Tensor:
+def _finite_step_rows(state: TensorDictBase, observation: torch.Tensor, reward: torch.Tensor) -> torch.Tensor:
     """[N] bool: every float of the row's state (integrated and derived), observation and reward is
     finite."""
     n = reward.shape[0]

@@ -123,7 +123,7 @@ def check_config(cfg: object) -> None:
         raise ValueError(f"batch_size ({batch_size}) must not exceed buffer_size ({buffer_size})")
     stop_when = getattr(cfg, "stop_when", "")
     if stop_when:
-        parse_stop_when(stop_when, [m.key for m in task_spec(cfg.task).metrics])  # type: ignore[attr-defined]
+        parse_stop_when(stop_when, task_spec(cfg.task).metric_keys)  # type: ignore[attr-defined]
         if not (cfg.eval_every and cfg.eval_episodes):  # type: ignore[attr-defined]
             raise ValueError("stop_when needs eval_every > 0 and eval_episodes > 0 (the validations it "
                              "is checked on)")

@@ -109,7 +109,7 @@ class TrainingRun:
         self.best = BestPolicy(task_spec(cfg.task).select_on or "") if cfg.keep_best else None
         #: ``stop_when``'s conditions, and the validation that met them: {"frames", "wall_seconds",
         #: "summary"} (None until then).
-        self.stop_conditions = parse_stop_when(cfg.stop_when, [m.key for m in task_spec(cfg.task).metrics])
+        self.stop_conditions = parse_stop_when(cfg.stop_when, task_spec(cfg.task).metric_keys)
         self.solved: dict | None = None
 
     # ------------------------------------------------------------------ files

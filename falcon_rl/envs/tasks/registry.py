@@ -153,6 +153,11 @@ class TaskSpec:
         """``figure(result, path) -> path``, or None when the task has no figure."""
         return None if self.figure is None else resolve(self.figure)
 
+    @property
+    def metric_keys(self) -> list[str]:
+        """The protocol's summary keys (without a case prefix), in report order."""
+        return [metric.key for metric in self.metrics]
+
     def env_default(self, name: str, fallback: Any) -> Any:
         """The task's default for env setting ``name`` (one of :data:`ENV_DEFAULT_FIELDS`), else
         ``fallback``."""
