@@ -15,6 +15,11 @@ shared machine hits every case alike):
 - ``torchrl floor (new outputs)``: the same trivial env whose ``_step`` returns new tensors (copies of
   its preallocated ones), as every env whose steps a rollout or a replay buffer keeps must: the floor
   of a usable env;
+- ``fused step``: the lean env's one-launch step (``FixedWingEnv.step_tensors(action, with_state=False,
+  copy=False)``: physics sub-steps, task, guard and flags in one Warp launch) without TorchRL around it
+  and without resets: what the TorchRL env adds is the rest;
+- ``fused step (CUDA graph)``: the same step captured once in a CUDA graph and replayed (CUDA only): the
+  step's device time without its host-side launch work;
 - ``env``, ``env lean``, ``env unfused``, ``env lean unfused``: the task env
   (``make_env(task, airframe, num_envs=N, backend, seed=0, decimation=d, lean=, fused=)``).
 
@@ -53,12 +58,14 @@ from falcon_rl.bench import BenchCase, _cpu_name, _time_blocks, env_stepper, plo
 from falcon_rl.envs.tasks import TERMINATION_REASONS
 
 #: Case label -> (kind, make_env options); kind in "physics", "physics checked", "torchrl", "torchrl new",
-#: "env".
+#: "fused", "env".
 CASES: dict[str, tuple[str, dict[str, bool]]] = {
     "physics": ("physics", {}),
     "physics checked": ("physics checked", {}),
     "torchrl floor": ("torchrl", {}),
     "torchrl floor (new outputs)": ("torchrl new", {}),
+    "fused step": ("fused", {"lean": True, "fused": True}),
+    "fused step (CUDA graph)": ("fused graph", {"lean": True, "fused": True}),
     "env": ("env", {"lean": False, "fused": True}),
     "env lean": ("env", {"lean": True, "fused": True}),
     "env unfused": ("env", {"lean": False, "fused": False}),
@@ -120,6 +127,34 @@ class TrivialEnv(EnvBase):
         """Nothing to seed."""
 
 
+def fused_stepper(env: Any, graph: bool = False) -> Callable[[], None]:
+    """A call that runs ``env``'s one-launch step with a zero action (no TorchRL, no reset, no copy),
+    with ``graph`` as a replay of the step captured in a CUDA graph; raises when the env has none (not
+    the warp backend, or a task without a fused step) or, with ``graph``, is not on CUDA."""
+    if env.env_stepper() is None:
+        raise ValueError("no one-launch env step (needs the warp backend and a task with a fused step)")
+    env.reset()
+    action = env.action_spec.zero()
+
+    def step() -> None:
+        env.step_tensors(action, with_state=False, copy=False)
+
+    if not graph:
+        return step
+    if env.device.type != "cuda":
+        raise ValueError("a CUDA graph needs a CUDA device")
+    side = torch.cuda.Stream(env.device)
+    side.wait_stream(torch.cuda.current_stream(env.device))
+    with torch.cuda.stream(side):  # warm-up on a side stream, as capture wants
+        for _ in range(3):
+            step()
+    torch.cuda.current_stream(env.device).wait_stream(side)
+    captured = torch.cuda.CUDAGraph()
+    with torch.cuda.graph(captured):
+        step()
+    return captured.replay
+
+
 def build_steppers(args: argparse.Namespace, n: int) -> tuple[dict[str, Callable[[], None] | str], int]:
     """Case label -> step call (or an error line), and the decimation the env resolved."""
     common = {"num_envs": n, "backend": args.backend, "device": args.device, "seed": 0,
@@ -140,6 +175,9 @@ def build_steppers(args: argparse.Namespace, n: int) -> tuple[dict[str, Callable
                 floor = TrivialEnv(n, base.observation_spec["observation"].shape[-1],
                                    base.action_spec.shape[-1], args.device, new_outputs=kind == "torchrl new")
                 steppers[label] = env_stepper(floor)
+            elif kind.startswith("fused"):
+                env = make_env(args.task, args.airframe, **common, **options)
+                steppers[label] = fused_stepper(env, graph=kind == "fused graph")
             else:
                 steppers[label] = env_stepper(make_env(args.task, args.airframe, **common, **options))
         except Exception as exc:  # an option the env does not have yet: report, keep the others

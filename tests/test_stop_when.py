@@ -71,6 +71,10 @@ def test_a_run_stops_at_the_first_validation_that_meets_the_conditions(tmp_path:
     summary = json.loads((out / "summary.json").read_text())
     assert summary["frames"] == 64  # the first validation, after one 64-frame batch
     assert summary["solved"]["frames"] == 64 and summary["solved"]["wall_seconds"] > 0
+    split = summary["time_split"]  # the loop's wall clock: collecting, validating and learning
+    assert split["collect_s"] > 0 and split["validate_s"] > 0 and split["learn_s"] >= 0
+    assert split["collect_s"] + split["validate_s"] <= split["loop_s"] <= summary["wall_seconds"]
+    assert 0 < split["collect_fraction"] < 1
     assert "stop_when met at 64 frames" in capsys.readouterr().out
     checkpoint = load_checkpoint(out / "checkpoint.pt")
     assert checkpoint["counters"]["frames"] == 64 and checkpoint["extra"]["solved"] == summary["solved"]

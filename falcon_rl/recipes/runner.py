@@ -111,6 +111,9 @@ class TrainingRun:
         #: "summary"} (None until then).
         self.stop_conditions = parse_stop_when(cfg.stop_when, task_spec(cfg.task).metric_keys)
         self.solved: dict | None = None
+        #: Wall seconds of this process's training loop spent collecting (the Collector's iteration: env
+        #: steps, resets and policy forward passes) and validating; the rest of the loop is learning.
+        self.timing = {"collect_s": 0.0, "validate_s": 0.0}
 
     # ------------------------------------------------------------------ files
     @property
@@ -137,6 +140,7 @@ class TrainingRun:
         self.stats = EpisodeStats(frames_at_start=self.counters.frames)
         self.progress = Progress(self.cfg.frames, self.counters.frames, self.name, self.cfg.progress)
         self._t0 = time.perf_counter() - self.counters.wall_seconds
+        self._loop_t0 = time.perf_counter()
         return self.counters
 
     def _saved_solved(self, saved: object, path) -> dict | None:
@@ -171,12 +175,31 @@ class TrainingRun:
                                   auto_register_policy_transforms=False)
             stagger_episodes(self.env, self.cfg.seed + self.counters.iterations)
             try:
-                for batch in collector:
+                for batch in self._timed(collector):
                     yield batch
                     if self.solved is not None:  # stop_when met at the validation after this batch
                         break
             finally:
                 collector.shutdown()
+
+    def _timed(self, collector: Collector) -> Iterator[TensorDictBase]:
+        """The collector's batches, the time spent producing each added to ``timing["collect_s"]``."""
+        batches = iter(collector)
+        while True:
+            start = time.perf_counter()
+            batch = next(batches, None)
+            self.timing["collect_s"] += time.perf_counter() - start
+            if batch is None:
+                return
+            yield batch
+
+    def time_split(self) -> dict[str, float]:
+        """This process's training loop so far: wall seconds collecting, validating and learning (the
+        rest), and the fraction of the loop spent collecting."""
+        loop = time.perf_counter() - self._loop_t0
+        collect, validate = self.timing["collect_s"], self.timing["validate_s"]
+        return {"loop_s": loop, "collect_s": collect, "validate_s": validate,
+                "learn_s": max(loop - collect - validate, 0.0), "collect_fraction": collect / max(loop, 1e-9)}
 
     def save(self) -> Path | None:
         """Mark a checkpoint at the current frames and write it (when the run has an ``out``)."""
@@ -202,7 +225,8 @@ class TrainingRun:
         c.episodes += int(batch["next", "done"].sum())
         rate = self.stats.rate(c.frames)
         row = {**self.stats.update(batch), **scalars, "time/env_steps_per_s": rate,
-               "time/wall_s": time.perf_counter() - self._t0}
+               "time/wall_s": time.perf_counter() - self._t0, "time/collect_s": self.timing["collect_s"],
+               "time/validate_s": self.timing["validate_s"]}
         log_scalars(self.logger, row, c.frames)
         self.history.append({"frames": c.frames, **row})
         self.progress.update(frames, self.stats.mean_return, self.stats.survival, rate)
@@ -217,7 +241,9 @@ class TrainingRun:
         """Score the current weights on the validation episodes; log it, and offer the snapshot to
         ``best`` when the run keeps its best policy."""
         c, cfg = self.counters, self.cfg
+        start = time.perf_counter()
         result = evaluate(self.actor, cfg, self.algorithm, cfg.eval_episodes, seed_offset=VALIDATION_SEED)
+        self.timing["validate_s"] += time.perf_counter() - start
         log_scalars(self.logger, eval_scalars(result), c.frames)
         if result is None:
             return
@@ -240,6 +266,7 @@ class TrainingRun:
     def finish(self) -> dict:
         """Final checkpoint, policy file (the best snapshot with ``keep_best``, else the last weights),
         TorchScript export and evaluation; returns a summary."""
+        time_split = self.time_split()  # the loop's, before the final validation and the test
         if self.best is not None and self.best.doc is not None:  # a run too short to validate ships its last
             if self.counters.last_eval_frames != self.counters.frames:  # solved: validated already
                 self.validate()  # the last weights compete with the snapshots
@@ -252,7 +279,7 @@ class TrainingRun:
         summary = {"algorithm": self.algorithm, "task": self.cfg.task, "airframe": self.cfg.airframe,
                    "frames": self.counters.frames, "iterations": self.counters.iterations,
                    "updates": self.counters.updates, "episodes": self.counters.episodes,
-                   "wall_seconds": wall, "env_steps_per_s": rate,
+                   "wall_seconds": wall, "env_steps_per_s": rate, "time_split": time_split,
                    "train_return": self.stats.mean_return, "train_survival": self.stats.survival}
         if self.best is not None and self.best.doc is not None:
             summary.update(selected_frames=self.best.frames, validation=self.best.summary)

@@ -1,0 +1,57 @@
+#!/usr/bin/env bash
+# Issue 17's GPU targets in one pass, on one CUDA GPU, in about nine minutes:
+#   1. the CUDA tests (env rollouts, one-launch step = staged step, fused tasks, turbulence and
+#      trajectory parity on the GPU; the torch.compile test is left to cuda_check.sh);
+#   2. benchmarks/env_step.py on the GPU at 16,384 and 1,048,576 envs: the physics alone, the one-launch
+#      step without TorchRL, the lean TorchRL env and the trivial-EnvBase floor, timed in the same rounds;
+#   3. PPO altitude on the Volantex Ranger on the GPU, from scratch, with each recipe of $PPO_RECIPES
+#      (default: the task's GPU recipe), stopping at the first validation with RMSE <= 0.3 m: the
+#      whole command timed, its log, summary and curve kept.
+# Usage: bash benchmarks/gpu_targets.sh [OUTDIR]      (python from $PYTHON, default python3)
+# Each step has its own time limit, so one that hangs or fails leaves the others their time; with
+# $SNAPSHOT set, OUTDIR is packed into that .tgz after each step (checkpoints left out).
+set -u
+out=${1:-runs/gpu_targets}
+py=${PYTHON:-python3}
+mkdir -p "$out"
+export PYTHONUNBUFFERED=1
+nvidia-smi --query-gpu=name,driver_version,memory.total,clocks.max.sm --format=csv | tee "$out/gpu.txt"
+$py -c "import torch, warp, torchrl, tensordict; warp.init(); print('torch', torch.__version__, 'warp',
+warp.__version__, 'torchrl', torchrl.__version__, 'tensordict', tensordict.__version__)" 2>&1 | tee -a "$out/gpu.txt"
+
+snapshot() { [ -z "${SNAPSHOT:-}" ] || tar czf "$SNAPSHOT" -C "$out" --exclude=checkpoint.pt .; }
+
+# The first CUDA env compiles the Warp module (the physics and every task's step) for this GPU.
+start=$(date +%s)
+timeout 300 $py -c "from falcon_rl import make_env; make_env('altitude', 'volantex_ranger', num_envs=8,
+backend='warp', device='cuda', seed=0).rollout(5)" 2>&1 | tail -3
+echo "warp module compiled and cached: $(( $(date +%s) - start )) s" | tee -a "$out/gpu.txt"
+
+start=$(date +%s)
+timeout "${TESTS_S:-150}" $py -m pytest -q -p no:cacheprovider -rs tests/test_cuda.py tests/test_env_step_kernel.py \
+    tests/test_fused_task.py tests/test_turbulence.py tests/test_warp_parity.py -k "cuda and not compiled" \
+    2>&1 | tail -8 | tee "$out/tests.txt"
+echo "tests: $(( $(date +%s) - start )) s" | tee -a "$out/tests.txt"
+snapshot
+
+start=$(date +%s)
+timeout "${BENCH_S:-110}" $py benchmarks/env_step.py --device cuda --envs 16384,1048576 --trials 5 --block-s 0.5 \
+    --cases "physics,fused step,fused step (CUDA graph),env lean,torchrl floor (new outputs)" --no-progress --out "$out/env_step" \
+    2>&1 | tee "$out/env_step.txt"
+echo "env_step: $(( $(date +%s) - start )) s" | tee -a "$out/env_step.txt"
+snapshot
+
+# name=overrides, space-separated; every recipe runs with the same seed, stop condition and limits.
+recipes=${PPO_RECIPES:-"gpu="}
+for recipe in $recipes; do
+    name=${recipe%%=*}
+    sets=()
+    IFS=',' read -ra fields <<< "${recipe#*=}"
+    for f in "${fields[@]}"; do [ -n "$f" ] && sets+=(--set "$f"); done
+    start=$(date +%s)
+    timeout "${PPO_S:-170}" $py -m falcon_rl.cli train ppo --task altitude --airframe volantex_ranger \
+        --device cuda --seed "${SEED:-0}" --no-progress --logger csv --out "$out/ppo_$name" \
+        --stop-when "survival>=1,acquisition>=0.95,rmse_m<=0.3" "${sets[@]}" 2>&1 | tee "$out/ppo_$name.txt"
+    echo "ppo $name: whole command $(( $(date +%s) - start )) s" | tee -a "$out/ppo_$name.txt"
+    snapshot
+done
