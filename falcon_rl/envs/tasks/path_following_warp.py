@@ -28,6 +28,10 @@ from .warp_common import (
     wrap_angle_wp,
 )
 
+# Forward kernels only: nothing differentiates through them, and the adjoints would multiply the
+# compile time (minutes on a cold CUDA cache).
+wp.set_module_options({"enable_backward": False})
+
 if TYPE_CHECKING:
     from .base import Task
 

@@ -17,8 +17,8 @@ of the engine and the task did, with the same float32 arithmetic:
 6. the episode step count and the done flags: terminated (a reason), truncated (at
    ``max_episode_steps``, not when terminated) and done (either).
 
-The kernels of the built-in tasks are made at import, all in this module, so that Warp compiles one
-module for them (the physics and every task). :class:`FusedEnvStep` binds the views (the engine's
+The kernels of the built-in tasks are made at import, each in a Warp module of its own (the physics
+and the task's step inlined), so that a launch compiles only the kernel of the task it steps. :class:`FusedEnvStep` binds the views (the engine's
 buffers, the task's, the env's counters), records the launches and replays them; per step it copies the
 action into its buffer (a cast for other float dtypes), draws the task's random numbers, bumps the
 turbulence stream counter when on, and launches: nothing else runs in Python or torch.
@@ -48,6 +48,10 @@ from .base import TERMINATION_CODE
 from .path_following_warp import PathFollowingBuffers, PathFollowingConstants, path_following_step
 from .trajectory_warp import TrajectoryBuffers, TrajectoryConstants, trajectory_step
 from .warp_common import FusedStep, SimulatorViews
+
+# Forward kernels only: nothing differentiates through them, and the adjoints would multiply the
+# compile time (minutes on a cold CUDA cache).
+wp.set_module_options({"enable_backward": False})
 
 
 class SteppedEnv(Protocol):
@@ -157,7 +161,9 @@ def env_step_kernel(task_step: Any, buffers: type, constants: type) -> Any:
         finish_step(v, e, observation, reward, reason, nan_action, i)
         flush_denormals_end(saved)
 
-    return wp.kernel(env_step)
+    # A module of its own: a launch compiles this task's kernel only (a cold CUDA compile of the four
+    # tasks' steps, each with the physics inlined, took minutes), and options follow this module's.
+    return wp.kernel(env_step, module="unique", module_options={"enable_backward": False})
 
 
 #: Env-step kernels of the built-in tasks' fused steps, by the task step's ``@wp.func``.
