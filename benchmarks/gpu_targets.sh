@@ -5,8 +5,12 @@
 #   2. benchmarks/env_step.py on the GPU at 16,384 and 1,048,576 envs: the physics alone, the one-launch
 #      step without TorchRL, the lean TorchRL env and the trivial-EnvBase floor, timed in the same rounds;
 #   3. PPO altitude on the Volantex Ranger on the GPU, from scratch, with each recipe of $PPO_RECIPES
-#      (default: the task's GPU recipe), stopping at the first validation with RMSE <= 0.3 m: the
-#      whole command timed, its log, summary and curve kept.
+#      (NAME=FIELD=VALUE,FIELD=VALUE ... ; default: two candidates, below), stopping at the first
+#      validation with RMSE <= 0.3 m: the whole command timed, its log and summary (with the loop's
+#      collect / validate / learn split) kept.
+# The first CUDA launch compiles the Warp kernels for the GPU (minutes: the physics module and the
+# task's env step, each with the RK4 sub-steps inlined) and caches them; step 0 does it and reports
+# the time, so that the later steps time warm kernels.
 # Usage: bash benchmarks/gpu_targets.sh [OUTDIR]      (python from $PYTHON, default python3)
 # Each step has its own time limit, so one that hangs or fails leaves the others their time; with
 # $SNAPSHOT set, OUTDIR is packed into that .tgz after each step (checkpoints left out).
@@ -42,7 +46,12 @@ echo "env_step: $(( $(date +%s) - start )) s" | tee -a "$out/env_step.txt"
 snapshot
 
 # name=overrides, space-separated; every recipe runs with the same seed, stop condition and limits.
-recipes=${PPO_RECIPES:-"gpu="}
+# Candidates, not yet run on a GPU: wide (4,096 envs x 32 steps, 131,072 frames a batch, four
+# minibatches of 32,768, lr 1e-3) and narrow (2,048 x 16, 32,768 frames, lr 5e-4). Checkpoints restart
+# the episodes, so they are spaced out; each validation flies 16 of the protocol's 30 s episodes.
+wide="wide=num_envs=4096,rollout_steps=32,lr=1e-3,frames=60000000,eval_every=8000000,checkpoint_every=20000000"
+narrow="narrow=num_envs=2048,rollout_steps=16,lr=5e-4,frames=30000000,eval_every=2000000,checkpoint_every=10000000"
+recipes=${PPO_RECIPES:-"$wide $narrow"}
 for recipe in $recipes; do
     name=${recipe%%=*}
     sets=()

@@ -1,4 +1,5 @@
-"""The env-step benchmark's TorchRL floors (``benchmarks/env_step.py``): what each one's rollout keeps.
+"""The env-step benchmark's TorchRL floors (``benchmarks/env_step.py``): what each one's rollout keeps;
+its one-launch step cases; the CUDA precompile's modules (``benchmarks/precompile_cuda.py``).
 
 The floor that hands out its preallocated tensors is TorchRL's own cost, but a rollout of it records
 the last step's values at every step; the floor with new outputs keeps every step, as a usable env must.
@@ -8,6 +9,7 @@ from __future__ import annotations
 
 from dataclasses import asdict
 
+import pytest
 import torch
 from tensordict import TensorDict
 
@@ -44,3 +46,25 @@ def test_ratios_to_both_floors_are_in_the_table(benchmark_script):
     table = bench.format_table({"cases": [asdict(c) for c in cases.values()]})
     row = "| env lean | 1 | 0.070 | 0.070-0.070 | 14,286 | 7.00 (7.00) | 1.75 (1.75) | 1.40 (1.40) |"
     assert row in table
+
+
+def test_the_one_launch_step_case_steps_the_env_and_the_graph_case_needs_cuda(benchmark_script):
+    bench = benchmark_script("env_step")
+    from falcon_rl import make_env
+
+    env = make_env("altitude", "volantex_ranger", num_envs=2, backend="warp", seed=0, lean=True)
+    step = bench.fused_stepper(env)
+    step()
+    step()
+    assert env.episode_step.tolist() == [2, 2]  # two env steps, no TorchRL, no reset
+    with pytest.raises(ValueError, match="a CUDA graph needs a CUDA device"):
+        bench.fused_stepper(env, graph=True)  # a CPU env
+    unfused = make_env("altitude", "volantex_ranger", num_envs=2, backend="torch", seed=0, lean=True)
+    with pytest.raises(ValueError, match="no one-launch env step"):
+        bench.fused_stepper(unfused)
+
+
+def test_the_cuda_precompile_finds_the_modules_an_env_launches(benchmark_script):
+    names = [m.name for m in benchmark_script("precompile_cuda").task_modules("altitude", "volantex_ranger")]
+    assert names[0] == "falcon_rl.physics.warp_kernels" and "falcon_rl.envs.tasks.altitude_warp" in names
+    assert len(names) == 3 and any("env_step" in name for name in names)

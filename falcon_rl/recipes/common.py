@@ -169,8 +169,7 @@ def transition_shapes(env: TransformedEnv, n_step: int = 1) -> dict[tuple[str, .
 def config_from(cls: type, task: str, algorithm: str, defaults: dict | None = None,
                 **overrides) -> TrainConfig:
     """``cls`` with the recipe's task-independent ``defaults``, then the task's defaults for
-    ``algorithm`` (``task_spec(task).training``, with the airframe's ``airframe_training`` and, on a CUDA
-    device, the task's ``gpu_training`` on top), then
+    ``algorithm`` (``task_spec(task).training``, with the airframe's ``airframe_training`` on top), then
     ``overrides`` (None values are ignored). ``env_options`` merge key by key instead: an override adds
     to (or replaces single entries of) the task's, so ``--set 'env_options={"turbulence": "medium"}'``
     keeps the recipe's reward weights."""
@@ -180,8 +179,7 @@ def config_from(cls: type, task: str, algorithm: str, defaults: dict | None = No
         raise TypeError(f"unknown {cls.__name__} fields {sorted(unknown)}")
     given = {k: v for k, v in overrides.items() if v is not None}
     airframe = given.get("airframe", (defaults or {}).get("airframe", cls.airframe))
-    device = given.get("device", (defaults or {}).get("device", cls.device))
-    task_defaults = task_spec(task).training_defaults(algorithm, airframe, device)
+    task_defaults = task_spec(task).training_defaults(algorithm, airframe)
     values = {**copy.deepcopy(defaults or {}), **task_defaults, **given}
     if isinstance(given.get("env_options"), dict):  # anything else fails the config checks
         values["env_options"] = {**(defaults or {}).get("env_options", {}),

@@ -367,12 +367,6 @@ V7_PPO: dict = {"episode_seconds": 30.0, "gamma": 0.995, "eval_every": 100_000,
 #: so the two defaults never share the dict with a run's config.
 RANGER_SAC: dict = {"env_options": HEAVIER_AIRSPEED_PENALTY}
 
-#: PPO on a CUDA device: 4,096 envs x 32 steps per batch (131,072 frames), four minibatches of 32,768, a
-#: learning rate of 1e-3 and 60 M frames; validations every 8 M frames and checkpoints every 20 M (each
-#: checkpoint restarts the envs' episodes, each validation flies the protocol's 30 s episodes).
-GPU_PPO: dict = {"num_envs": 4096, "rollout_steps": 32, "minibatches": 4, "lr": 1e-3, "frames": 60_000_000,
-                 "eval_every": 8_000_000, "checkpoint_every": 20_000_000}
-
 #: Training defaults (on top of each recipe's own). PPO: 256 envs x 32 steps per batch (8,192 frames),
 #: 20 s episodes, 8 M frames (12 M on the Ranger; the V7: :data:`V7_PPO`); every recipe validates on 16
 #: held-out episodes every 500 k frames (SAC, TD3: 50 k) and ships its best snapshot (``keep_best``); SAC
@@ -398,6 +392,5 @@ SPEC = register_task(TaskSpec(
                       "frames": 700_000}},
     airframe_training={"volantex_ranger": {"ppo": {"frames": 12_000_000}, "sac": RANGER_SAC},
                        "airship_v7": {"ppo": V7_PPO, "sac": V7_SAC, "td3": V7_TD3}},
-    gpu_training={"ppo": GPU_PPO},
     defaults=TRAINING_ENV_OPTIONS,
 ))

@@ -113,14 +113,10 @@ class TaskSpec:
     select_on: str | None = None
     training: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
     airframe_training: Mapping[str, Mapping[str, Mapping[str, Any]]] = field(default_factory=dict)
-    #: Recipe fields for a run on a CUDA device, per recipe, over the task's and the airframe's (a GPU
-    #: steps thousands of envs for the price of a few, so its recipes batch wider).
-    gpu_training: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
     defaults: Mapping[str, Any] = field(default_factory=lambda: {"decimation": TRAINING_DECIMATION})
 
     def __post_init__(self) -> None:
-        unknown = set(self.training).union(self.gpu_training, *map(set, self.airframe_training.values()))
-        unknown -= set(ALGORITHMS)
+        unknown = set(self.training).union(*map(set, self.airframe_training.values())) - set(ALGORITHMS)
         if unknown:
             raise ValueError(f"task {self.name!r}: training defaults for unknown recipes {sorted(unknown)}; "
                              f"recipes: {list(ALGORITHMS)}")
@@ -136,7 +132,6 @@ class TaskSpec:
             return MappingProxyType({name: MappingProxyType(dict(values)) for name, values in per.items()})
 
         object.__setattr__(self, "training", freeze(self.training))
-        object.__setattr__(self, "gpu_training", freeze(self.gpu_training))
         object.__setattr__(self, "airframe_training", MappingProxyType(
             {airframe: freeze(per) for airframe, per in self.airframe_training.items()}))
 
@@ -173,16 +168,11 @@ class TaskSpec:
         fields = {k: copy.deepcopy(v) for k, v in self.defaults.items() if k not in ENV_DEFAULT_FIELDS}
         return self.config(**{**fields, **overrides})
 
-    def training_defaults(self, algorithm: str, airframe: str | None = None,
-                          device: str | None = None) -> dict[str, Any]:
+    def training_defaults(self, algorithm: str, airframe: str | None = None) -> dict[str, Any]:
         """A fresh (deep) copy of the config fields this task sets for recipe ``algorithm``, with those
-        of ``airframe`` (its ``airframe_training`` entry, when it has one) on top, then, for a CUDA
-        ``device`` ("cuda", "cuda:1"), the task's ``gpu_training`` entry."""
+        of ``airframe`` (its ``airframe_training`` entry, when it has one) on top."""
         per_airframe = self.airframe_training.get(airframe, {}) if airframe is not None else {}
-        on_gpu = device is not None and str(device).split(":")[0] == "cuda"
-        per_device = self.gpu_training.get(algorithm, {}) if on_gpu else {}
-        return copy.deepcopy({**self.training.get(algorithm, {}), **per_airframe.get(algorithm, {}),
-                              **per_device})
+        return copy.deepcopy({**self.training.get(algorithm, {}), **per_airframe.get(algorithm, {})})
 
 
 _SPECS: dict[str, TaskSpec] = {}

@@ -18,10 +18,12 @@ of the engine and the task did, with the same float32 arithmetic:
    ``max_episode_steps``, not when terminated) and done (either).
 
 The kernels of the built-in tasks are made at import, each in a Warp module of its own (the physics
-and the task's step inlined), so that a launch compiles only the kernel of the task it steps. :class:`FusedEnvStep` binds the views (the engine's
-buffers, the task's, the env's counters), records the launches and replays them; per step it copies the
-action into its buffer (a cast for other float dtypes), draws the task's random numbers, bumps the
-turbulence stream counter when on, and launches: nothing else runs in Python or torch.
+and the task's step inlined), so that a launch compiles only the kernel of the task it steps: a cold
+CUDA compile of one takes minutes (NVRTC, sm_90: 301 s for altitude's on a 2-core AMD EPYC host).
+:class:`FusedEnvStep` binds the views (the engine's buffers, the task's, the env's counters), records
+the launches and replays them; per step it copies the action into its buffer (a cast for other float
+dtypes), draws the task's random numbers, bumps the turbulence stream counter when on, and launches:
+nothing else runs in Python or torch.
 
 No ``from __future__ import annotations`` here: Warp reads the kernel factory's annotations, which name
 the task's struct types through the closure.
@@ -147,7 +149,7 @@ def finish_step(v: EnvViews, e: EngineViews, observation: wp.array2d(dtype=wp.fl
 def env_step_kernel(task_step: Any, buffers: type, constants: type) -> Any:
     """A Warp kernel of the whole env step (the module docstring) around ``task_step``, a task's
     ``@wp.func (sim, buf: buffers, c: constants, observation [N, D], reward [N], reason [N] int64, i)``,
-    for env i = offset + tid. Made in this module (kernels made at import share one compiled module)."""
+    for env i = offset + tid, in a Warp module of its own (forward only): a launch compiles it alone."""
 
     def env_step(e: EngineViews, p: WarpParams, g: StepSettings, substeps: int, stop_at_ground: int,
                  v: EnvViews, sim: SimulatorViews, buf: buffers, c: constants,  # type: ignore[valid-type]
