@@ -4,13 +4,7 @@
 # then the MPPI planning time per control step on the GPU.
 # Usage: bash benchmarks/cuda_check.sh [OUTDIR]     (python from $PYTHON, default python3)
 set -u
-out=${1:-runs/cuda}
-py=${PYTHON:-python3}
-mkdir -p "$out"
-export PYTHONUNBUFFERED=1
-nvidia-smi --query-gpu=name,driver_version,memory.total,clocks.max.sm --format=csv | tee "$out/gpu.txt"
-$py -c "import torch, warp, torchrl, tensordict; print('torch', torch.__version__, 'warp', warp.__version__,
-'torchrl', torchrl.__version__, 'tensordict', tensordict.__version__)" | tee -a "$out/gpu.txt"
+. "$(dirname "$0")/gpu_setup.sh" "${1:-runs/cuda}"
 $py -m pytest -q -p no:cacheprovider -rs tests/test_cuda.py tests/test_warp_parity.py -k cuda \
     2>&1 | tail -15 | tee "$out/tests.txt"
 $py -m falcon_rl.cli bench --device cuda --backend warp,torch --envs 1,1024,16384,262144,1048576 \
