@@ -71,6 +71,18 @@ def capture_cpu_graph(launch: Any) -> Any | None:
     return graph if recorded else None
 
 
+#: Options of every Warp kernel module here: forward kernels only. Nothing differentiates through
+#: them, and the adjoints Warp compiles by default multiplied the compile time (a cold CPU build of
+#: the altitude env 77.6 s -> 20.7 s without them; a cold CUDA build takes minutes even so).
+KERNEL_OPTIONS: dict[str, Any] = {"enable_backward": False}
+
+
+def forward_only(module_name: str) -> None:
+    """Compile the Warp kernels of module ``module_name`` with :data:`KERNEL_OPTIONS` (no adjoints)."""
+    if wp is not None:
+        wp.set_module_options(dict(KERNEL_OPTIONS), module_name)
+
+
 def warp_func(fn: Callable[..., Any]) -> Any:
     """``@wp.func`` when Warp is available, else a placeholder that raises when called."""
     if wp is not None:

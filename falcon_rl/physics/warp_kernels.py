@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import warp as wp
 
+from ._warp import forward_only
 from .actuators import hold_ideal_wp
 from .derived import DERIVED_OFFSET, MAX_MOTORS
 from .dynamics import derivative_wp, evaluate_wp, project_wp
@@ -23,9 +24,7 @@ from .rotations import quaternion_to_euler_wp, rotation_matrix_wp
 from .state import ANGULAR_RATE_START, DOWN_INDEX, QUATERNION_START, THROTTLE_START, VELOCITY_START, StateVec
 from .wind import NUM_FILTER_STATES, NUM_NOISE, Vec6, Vec8, dryden_step_wp
 
-# Forward kernels only: nothing differentiates through them, and the adjoints would multiply the
-# compile time (minutes on a cold CUDA cache).
-wp.set_module_options({"enable_backward": False})
+forward_only(__name__)
 
 # Denormal floats (|x| < 1.2e-38) take a slow microcode path on x86 CPUs. Trimmed, symmetric states
 # make them (powers of near-zero sideslip and lateral deflections in the aero table), and they cost a

@@ -23,6 +23,7 @@ import torch
 import warp as wp
 
 from ...constants import DEG, G0
+from ...physics._warp import forward_only
 from ...physics.warp_kernels import flush_denormals_begin, flush_denormals_end
 from .warp_common import (
     FusedStep,
@@ -40,9 +41,7 @@ from .warp_common import (
     torch_sign,
 )
 
-# Forward kernels only: nothing differentiates through them, and the adjoints would multiply the
-# compile time (minutes on a cold CUDA cache).
-wp.set_module_options({"enable_backward": False})
+forward_only(__name__)
 
 if TYPE_CHECKING:
     from .base import Task

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any
 import warp as wp
 
 from ...constants import DEG
+from ...physics._warp import forward_only
 from ...physics.warp_kernels import flush_denormals_begin, flush_denormals_end
 from .warp_common import (
     FusedStep,
@@ -27,9 +28,7 @@ from .warp_common import (
     termination_code,
 )
 
-# Forward kernels only: nothing differentiates through them, and the adjoints would multiply the
-# compile time (minutes on a cold CUDA cache).
-wp.set_module_options({"enable_backward": False})
+forward_only(__name__)
 
 if TYPE_CHECKING:
     from .base import Task

@@ -36,6 +36,7 @@ import numpy as np
 import torch
 import warp as wp
 
+from ...physics._warp import KERNEL_OPTIONS
 from ...physics.params import WarpParams
 from ...physics.warp_kernels import (
     EngineViews,
@@ -50,10 +51,6 @@ from .base import TERMINATION_CODE
 from .path_following_warp import PathFollowingBuffers, PathFollowingConstants, path_following_step
 from .trajectory_warp import TrajectoryBuffers, TrajectoryConstants, trajectory_step
 from .warp_common import FusedStep, SimulatorViews
-
-# Forward kernels only: nothing differentiates through them, and the adjoints would multiply the
-# compile time (minutes on a cold CUDA cache).
-wp.set_module_options({"enable_backward": False})
 
 
 class SteppedEnv(Protocol):
@@ -165,7 +162,7 @@ def env_step_kernel(task_step: Any, buffers: type, constants: type) -> Any:
 
     # A module of its own: a launch compiles this task's kernel only (a cold CUDA compile of the four
     # tasks' steps, each with the physics inlined, took minutes), and options follow this module's.
-    return wp.kernel(env_step, module="unique", module_options={"enable_backward": False})
+    return wp.kernel(env_step, module="unique", module_options=dict(KERNEL_OPTIONS))
 
 
 #: Env-step kernels of the built-in tasks' fused steps, by the task step's ``@wp.func``.
