@@ -23,6 +23,9 @@ to go on training from). The final evaluation flies the shipped policy on the te
 ``EVAL_SEED``), which no choice of the run has seen. With ``stop_when`` the run ends at the first
 validation that meets its conditions (``summary["solved"]``: the frames and wall seconds it took); a
 checkpoint remembers it, so resuming a solved run with the same conditions only finishes it.
+
+Time: the summary's ``time_split`` divides this process's training loop into collecting (the Collector:
+env steps, resets, the policy's forward passes), validating and learning (the rest), wall seconds.
 """
 
 from __future__ import annotations
@@ -169,11 +172,13 @@ class TrainingRun:
         each a fresh Collector on the envs (reset, then staggered with ``seed + iterations``), uniform
         random actions while fewer than ``random_frames`` frames were collected in the whole run."""
         while total := self.segment_frames(batch_frames):
+            start = time.perf_counter()  # a segment's set-up (the envs' reset and stagger) is collection
             collector = Collector(self.env, policy, frames_per_batch=batch_frames, total_frames=total,
                                   init_random_frames=max(random_frames - self.counters.frames, 0),
                                   device=self.cfg.device, trust_policy=True,
                                   auto_register_policy_transforms=False)
             stagger_episodes(self.env, self.cfg.seed + self.counters.iterations)
+            self.timing["collect_s"] += time.perf_counter() - start
             try:
                 for batch in self._timed(collector):
                     yield batch
