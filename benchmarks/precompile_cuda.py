@@ -11,8 +11,8 @@ options, and CUDA launches use a block of 256 threads (CPU launches one), so the
 a CUDA launch hashes them. Copy the cache folder to the GPU machine (``~/.cache/warp`` or the
 ``WARP_CACHE_PATH`` it runs with).
 
-Per task: a lean and a full env are built on the CPU (registering every kernel they launch), then the
-one-launch env step's module, the task's fused step's module and the physics module are compiled for
+Per task: an env is built on the CPU to find its kernels, then the physics module, the one-launch env
+step's module and the task's fused step's module are compiled for
 ``--arch``: CUBIN by default (what Warp loads when the driver is older than its CUDA toolkit), PTX with
 ``--ptx`` (what it loads otherwise).
 """
@@ -30,13 +30,11 @@ from falcon_rl import make_env
 
 
 def task_modules(task: str, airframe: str) -> list[Any]:
-    """The Warp modules an env of ``task`` launches on the warp backend (lean and full)."""
-    lean = make_env(task, airframe, num_envs=2, backend="warp", seed=0, lean=True)
-    full = make_env(task, airframe, num_envs=2, backend="warp", seed=0)
-    lean.rollout(2)
-    full.rollout(2)
+    """The Warp modules an env of ``task`` launches on the warp backend: the physics, and the task's
+    one-launch env step and fused task step where it has them (the kernels exist from import on)."""
+    env = make_env(task, airframe, num_envs=1, backend="warp", seed=0, lean=True)
     modules = [wp.get_module("falcon_rl.physics.warp_kernels")]
-    stepper = lean.env_stepper()
+    stepper = env.env_stepper()
     if stepper is not None:
         modules += [stepper.kernel.module, stepper.task_step.kernel.module]
     return modules
