@@ -133,6 +133,8 @@ def fused_stepper(env: Any, graph: bool = False) -> Callable[[], None]:
     the warp backend, or a task without a fused step) or, with ``graph``, is not on CUDA."""
     if env.env_stepper() is None:
         raise ValueError("no one-launch env step (needs the warp backend and a task with a fused step)")
+    if graph and env.device.type != "cuda":
+        raise ValueError("a CUDA graph needs a CUDA device")
     env.reset()
     action = env.action_spec.zero()
 
@@ -141,8 +143,6 @@ def fused_stepper(env: Any, graph: bool = False) -> Callable[[], None]:
 
     if not graph:
         return step
-    if env.device.type != "cuda":
-        raise ValueError("a CUDA graph needs a CUDA device")
     side = torch.cuda.Stream(env.device)
     side.wait_stream(torch.cuda.current_stream(env.device))
     with torch.cuda.stream(side):  # warm-up on a side stream, as capture wants
