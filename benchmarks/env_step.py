@@ -20,6 +20,9 @@ shared machine hits every case alike):
   and without resets: what the TorchRL env adds is the rest;
 - ``fused step (CUDA graph)``: the same step captured once in a CUDA graph and replayed (CUDA only): the
   step's device time without its host-side launch work;
+- ``partial reset``: ``FixedWingEnv.reset_tensors(mask)`` of the lean env with one env in the mask (a
+  different one each call), what a rollout's auto-reset runs for the envs that finished (the task's
+  draws, the reset checks, the physics' reset launch, the task's buffers and observation);
 - ``env``, ``env lean``, ``env unfused``, ``env lean unfused``: the task env
   (``make_env(task, airframe, num_envs=N, backend, seed=0, decimation=d, lean=, fused=)``).
 
@@ -58,7 +61,7 @@ from falcon_rl.bench import BenchCase, _cpu_name, _time_blocks, env_stepper, plo
 from falcon_rl.envs.tasks import TERMINATION_REASONS
 
 #: Case label -> (kind, make_env options); kind in "physics", "physics checked", "torchrl", "torchrl new",
-#: "fused", "env".
+#: "fused", "fused graph", "reset", "env".
 CASES: dict[str, tuple[str, dict[str, bool]]] = {
     "physics": ("physics", {}),
     "physics checked": ("physics checked", {}),
@@ -66,6 +69,7 @@ CASES: dict[str, tuple[str, dict[str, bool]]] = {
     "torchrl floor (new outputs)": ("torchrl new", {}),
     "fused step": ("fused", {"lean": True, "fused": True}),
     "fused step (CUDA graph)": ("fused graph", {"lean": True, "fused": True}),
+    "partial reset": ("reset", {"lean": True, "fused": True}),
     "env": ("env", {"lean": False, "fused": True}),
     "env lean": ("env", {"lean": True, "fused": True}),
     "env unfused": ("env", {"lean": False, "fused": False}),
@@ -155,6 +159,22 @@ def fused_stepper(env: Any, graph: bool = False) -> Callable[[], None]:
     return captured.replay
 
 
+def partial_resetter(env: Any) -> Callable[[], None]:
+    """A call that resets one env of ``env`` (``reset_tensors`` with a one-row mask; the row moves on by
+    one each call), after a full reset."""
+    env.reset()
+    n = env.config.num_envs
+    state = {"row": 0}
+
+    def reset() -> None:
+        state["row"] = (state["row"] + 1) % n
+        mask = torch.zeros(n, dtype=torch.bool, device=env.device)
+        mask[state["row"]] = True
+        env.reset_tensors(mask)
+
+    return reset
+
+
 def build_steppers(args: argparse.Namespace, n: int) -> tuple[dict[str, Callable[[], None] | str], int]:
     """Case label -> step call (or an error line), and the decimation the env resolved."""
     common = {"num_envs": n, "backend": args.backend, "device": args.device, "seed": 0,
@@ -175,6 +195,8 @@ def build_steppers(args: argparse.Namespace, n: int) -> tuple[dict[str, Callable
                 floor = TrivialEnv(n, base.observation_spec["observation"].shape[-1],
                                    base.action_spec.shape[-1], args.device, new_outputs=kind == "torchrl new")
                 steppers[label] = env_stepper(floor)
+            elif kind == "reset":
+                steppers[label] = partial_resetter(make_env(args.task, args.airframe, **common, **options))
             elif kind.startswith("fused"):
                 env = make_env(args.task, args.airframe, **common, **options)
                 steppers[label] = fused_stepper(env, graph=kind == "fused graph")

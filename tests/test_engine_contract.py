@@ -132,3 +132,54 @@ def test_differential_thrust_through_the_env(backend):
     assert yaw_rate[0] > 1e-3, "more thrust on the left motor must yaw the nose right (r > 0)"
     assert abs(float(yaw_rate[1])) < 0.1 * float(yaw_rate[0])
     assert math.isfinite(float(td["reward"].sum()))
+
+
+def test_warp_reset_launch_equals_the_torch_writes():
+    """``WarpEngine.start`` (one launch: the masked rows held, projected and written, then the batch's
+    derived state) leaves the buffers as the contract's torch writes do and returns what ``derived()``
+    evaluates; rows outside the mask, their gusts, clocks and crash flags included, are untouched."""
+    sims = [Simulator("volantex_ranger", num_envs=16, backend="warp", turbulence="moderate", seed=5)
+            for _ in range(2)]
+    command = _command(sims[0])
+    command[:, 0] += 0.3
+    for sim in sims:  # gusts, clocks and Dryden filters away from zero, one env on the ground
+        for _ in range(5):
+            sim.step(command, substeps=3)
+        sim.engine.crashed[[2, 9]] = True
+    initial = sims[0].x.clone()
+    initial[:, 2] = -torch.linspace(1.0, 60.0, 16)  # heights
+    initial[:, 3:7] *= 1.7  # a quaternion to renormalise
+    initial[:, 13:16] = 0.7  # surfaces beyond their limits: saturated, or on the command (ideal actuators)
+    start_command = command.clamp(-1.0, 1.0).flip(0)
+    mask = torch.zeros(16, dtype=torch.bool)
+    mask[[0, 2, 5, 11]] = True
+    before = sims[0].x.clone()
+    derived = sims[0].engine.start(initial, start_command, mask)
+    assert Engine.start(sims[1].engine, initial, start_command, mask) is None
+    one, two = sims[0].engine, sims[1].engine
+    for name in ("x", "command", "time", "gust_velocity_body", "gust_rate_body", "crashed"):
+        assert torch.allclose(getattr(one, name).float(), getattr(two, name).float(), atol=2e-7, rtol=0), name
+    assert torch.equal(one.turbulence.filter, two.turbulence.filter)
+    assert torch.equal(one.x[~mask], before[~mask]) and bool(one.crashed[9]) and not bool(one.crashed[2])
+    assert torch.equal(derived.clone(), one.derived())
+
+
+def test_the_warp_reset_screen_calls_the_check_for_bad_rows_only():
+    """The device screen before a Warp reset: good rows skip the caller's check (no torch check per
+    reset); each kind of bad row in the mask calls it before anything is written; rows outside the
+    mask are not read."""
+    sim = Simulator("volantex_ranger", num_envs=4, backend="warp", seed=0)
+    calls: list[str] = []
+    good, command = sim.x.clone(), sim.command.clone()
+    mask = torch.tensor([True, True, False, True])
+    sim.engine.start(good, command, mask, check=lambda: calls.append(1))
+    assert calls == []
+    for column, value in ((0, math.nan), (slice(3, 7), 1e-4), (2, 1.0), (0, 2e7), (7, 400.0), (11, 30.0)):
+        bad = good.clone()
+        bad[1, column] = value  # NaN, a short quaternion, underground, far away, too fast, spinning
+        bad[2, :] = math.nan  # outside the mask
+        sim.engine.start(bad, command, mask, check=lambda column=column: calls.append(str(column)))
+    bad_command = command.clone()
+    bad_command[3, 1] = 1.5
+    sim.engine.start(good, bad_command, mask, check=lambda: calls.append("command"))
+    assert calls == ["0", "slice(3, 7, None)", "2", "0", "7", "11", "command"]

@@ -1,5 +1,6 @@
 """The env-step benchmark's TorchRL floors (``benchmarks/env_step.py``): what each one's rollout keeps;
-its one-launch step cases; the CUDA precompile's modules (``benchmarks/precompile_cuda.py``).
+its one-launch step and partial reset cases; the CUDA precompile's modules
+(``benchmarks/precompile_cuda.py``).
 
 The floor that hands out its preallocated tensors is TorchRL's own cost, but a rollout of it records
 the last step's values at every step; the floor with new outputs keeps every step, as a usable env must.
@@ -62,6 +63,20 @@ def test_the_one_launch_step_case_steps_the_env_and_the_graph_case_needs_cuda(be
     unfused = make_env("altitude", "volantex_ranger", num_envs=2, backend="torch", seed=0, lean=True)
     with pytest.raises(ValueError, match="no one-launch env step"):
         bench.fused_stepper(unfused)
+
+
+def test_the_partial_reset_case_resets_one_env_per_call(benchmark_script):
+    bench = benchmark_script("env_step")
+    from falcon_rl import make_env
+
+    env = make_env("altitude", "volantex_ranger", num_envs=3, backend="warp", seed=0, lean=True)
+    reset = bench.partial_resetter(env)
+    for _ in range(2):
+        env.step_tensors(torch.zeros(3, env.task.action_dim))
+    reset()
+    assert env.episode_step.tolist() == [2, 0, 2]  # env 1 reset, the others untouched
+    reset()
+    assert env.episode_step.tolist() == [2, 0, 0]
 
 
 def test_the_cuda_precompile_finds_the_modules_an_env_launches(benchmark_script):

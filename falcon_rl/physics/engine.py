@@ -2,6 +2,7 @@
 
     engine = engine_class("warp")(setup)       # backends.py; setup: an EngineSetup (params, dt, ...)
     engine.reset(initial_x, initial_command, mask)      # masked write of [N, S] and [N, 4]
+    engine.start(initial_x, initial_command, mask)      # the same from an unprojected state (-> derived)
     engine.step(command, substeps, stop_at_ground)   # command [N, 4] in [-1, 1], held over the sub-steps
     engine.derived()                           # [N, DERIVED_WIDTH], columns of derived.DERIVED_FIELDS
 
@@ -34,14 +35,14 @@ from __future__ import annotations
 import hashlib
 import os
 from abc import ABC, abstractmethod
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 import torch
 
 from ..airframe import Airframe
-from .dynamics import AirInputs
+from .dynamics import AirInputs, hold_command, project
 from .params import ModelParams
 from .state import ANGULAR_RATE, DOWN_INDEX, NUM_CONTROLS, VELOCITY, StateLayout
 from .wind import Turbulence, TurbulenceConfig
@@ -206,6 +207,23 @@ class Engine(ABC):
         if self.turbulence is not None:
             self.turbulence.reset(mask)
         self.after_reset()
+
+    def start(self, initial_x: torch.Tensor, initial_command: torch.Tensor,
+              mask: torch.Tensor | None = None, check: Callable[[], None] | None = None
+              ) -> torch.Tensor | None:
+        """:meth:`reset` the rows of ``mask`` [N] bool (all when None) from an unprojected
+        ``initial_x`` [N, S] under ``initial_command`` [N, 4]: the ideal actuators put on the command
+        and the step's projection applied first (``hold_command``, ``project``). ``check``: the
+        caller's check of those rows (it raises, naming them), run before anything is written; a
+        backend that screens the rows against the reset ranges (``state.MAX_RESET_*``) on the device
+        runs it only when its screen finds a bad row. Returns the batch's [N, DERIVED_WIDTH] derived
+        state when the backend evaluated it on the way (the engine's buffer, overwritten by the next
+        evaluation), else None."""
+        if check is not None:
+            check()
+        self.reset(project(hold_command(initial_x, initial_command, self.params), self.params),
+                   initial_command, mask)
+        return None
 
     def after_reset(self) -> None:
         """Hook: a backend that binds views of the buffers re-checks them here."""

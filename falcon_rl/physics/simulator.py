@@ -23,25 +23,19 @@ from ..airframe import Airframe, load_airframe
 from . import state as S
 from .backends import ENGINES, engine_class
 from .derived import split_derived
-from .dynamics import AirInputs, hold_command, project
+from .dynamics import AirInputs
 from .engine import Engine, EngineSetup
 from .ground_effect import GE_MODES
 from .integrators import INTEGRATORS
 from .params import ModelParams, build_params
 from .rotations import euler_to_quaternion
+from .state import MAX_RESET_POSITION, MAX_RESET_RATE, MAX_RESET_SPEED, MIN_QUATERNION_NORM
 from .switches import ModelSwitches, switch_flags
 from .trim import trim_level
 from .wind import Turbulence, TurbulenceConfig, turbulence_config
 
 BACKENDS = tuple(ENGINES)
 DEFAULT_HEIGHT = 100.0
-#: Physical ranges a reset state must lie in (the model is subsonic, rigid and above the ground):
-#: speed relative to the ground, m/s; body rates, rad/s; |position| components, m.
-MAX_RESET_SPEED = 300.0
-MAX_RESET_RATE = 20.0
-MAX_RESET_POSITION = 1.0e7
-#: A quaternion shorter than this cannot be normalised into an attitude (it is refused at reset).
-MIN_QUATERNION_NORM = 1.0e-3
 
 
 class Simulator:
@@ -260,10 +254,9 @@ class Simulator:
             new_x[:] = initial.to(self.device, self.dtype)
         elif initial is not None:
             new_x, new_cmd = self._compose_initial(initial, new_x, new_cmd)
-        self._check_initial(new_x, new_cmd, mask)
-        new_x = project(hold_command(new_x, new_cmd, self.params), self.params)
-        self.engine.reset(new_x, new_cmd, mask)
-        return self.state
+        derived = self.engine.start(new_x, new_cmd, mask,
+                                    check=lambda: self._check_initial(new_x, new_cmd, mask))
+        return self.state_and_derived(derived)[0]
 
     def _check_initial(self, x: torch.Tensor, command: torch.Tensor, mask: torch.Tensor | None) -> None:
         """ValueError (one line) unless the reset rows of ``x`` [N, S] and ``command`` [N, 4] are
@@ -372,10 +365,12 @@ class Simulator:
         (``derived.DERIVED_FIELDS``, on warp one kernel launch)."""
         return self.state_and_derived()[0]
 
-    def state_and_derived(self) -> tuple[TensorDict, torch.Tensor]:
-        """(:attr:`state`, the [N, DERIVED_WIDTH] derived columns its derived fields are views of)."""
+    def state_and_derived(self, derived: torch.Tensor | None = None) -> tuple[TensorDict, torch.Tensor]:
+        """(:attr:`state`, the [N, DERIVED_WIDTH] derived columns its derived fields are views of);
+        ``derived``: the engine's derived state of the current x when the caller has it already
+        (``Engine.start``), else it is evaluated."""
         x = self.x.clone()  # one copy; the fields are views of it (and of one copy of the derived state)
-        columns = self.engine.derived().clone()
+        columns = (self.engine.derived() if derived is None else derived).clone()
         derived = split_derived(columns, copy=False)
         # Every entry is an [N, ...] tensor of this simulator's device by construction: the unchecked
         # constructor skips TensorDict's per-entry validation (~0.15 ms of a one-env state).

@@ -26,6 +26,14 @@ import torch
 from ..airframe import CONTROL_NAMES
 from ._warp import vector_type
 
+#: Physical ranges a reset state must lie in (the model is subsonic, rigid and above the ground):
+#: speed relative to the ground, m/s; body rates, rad/s; |position| components, m.
+MAX_RESET_SPEED = 300.0
+MAX_RESET_RATE = 20.0
+MAX_RESET_POSITION = 1.0e7
+#: A quaternion shorter than this cannot be normalised into an attitude (it is refused at reset).
+MIN_QUATERNION_NORM = 1.0e-3
+
 POSITION = slice(0, 3)
 QUATERNION = slice(3, 7)
 VELOCITY = slice(7, 10)

@@ -112,7 +112,8 @@ class WarpEngine(Engine):
     _RUNTIME = ("_wp", "_kernels", "device", "_torch_device", "_is_cuda", "_key", "_launches",
                 "_evaluate_launches", "_substeps", "_evaluation", "_stream", "threads", "slices",
                 "_params_object", "_params", "_params_ptrs", "_turb_placeholders", "_turb_object",
-                "_stop", "generation", "_views", "_step_replay", "_step_replays", "_evaluate_replay")
+                "_stop", "generation", "_views", "_step_replay", "_step_replays", "_evaluate_replay",
+                "_reset_inputs", "_reset_replay", "_screen_replay")
 
     @classmethod
     def placement(cls, num_envs: int, device: torch.device, dtype: torch.dtype
@@ -159,6 +160,13 @@ class WarpEngine(Engine):
         self._views: tuple[Any, Any, Any] | None = None
         self._evaluation = torch.empty(self.num_envs, DERIVED_WIDTH, device=setup.device,
                                        dtype=torch.float32)
+        #: The reset's staging buffers (initial x [N, S], command [N, 4], mask [N]) and the screen's codes
+        #: [N] int32: bound once, written by :meth:`start` before its recorded launches.
+        self._reset_inputs = (torch.empty_like(self.x), torch.empty_like(self.command),
+                              torch.empty(self.num_envs, device=setup.device, dtype=torch.bool),
+                              torch.zeros(self.num_envs, device=setup.device, dtype=torch.int32))
+        self._reset_replay: Callable[[], None] = lambda: None
+        self._screen_replay: Callable[[], None] = lambda: None
         self._stream: Any = None
         threads = setup.options.get("cpu_threads")
         self.threads = 1 if self._is_cuda else cpu_thread_count(self.num_envs, threads)
@@ -233,9 +241,20 @@ class WarpEngine(Engine):
                                              inputs=[*evaluate_inputs, offset], device=self.device,
                                              record_cmd=True)
                                    for offset, count in self.slices]
+        initial_x, initial_command, mask, codes = self._reset_inputs
+        staged = [wp.from_torch(initial_x), wp.from_torch(initial_command, dtype=wp.vec4),
+                  wp.from_torch(mask, dtype=wp.bool)]
+        reset_launches, screen_launches = (
+            [wp.launch(kernel, dim=count, inputs=[*inputs, offset], device=self.device, record_cmd=True)
+             for offset, count in self.slices]
+            for kernel, inputs in ((self._kernels.reset_kernel, [views, params, *staged,
+                                                                 wp.from_torch(self._evaluation)]),
+                                   (self._kernels.screen_kernel, [*staged, wp.from_torch(codes)])))
         self._step_replay = self.replayer(self._launches)
         self._step_replays = {(self._substeps, self._stop): self._step_replay}
         self._evaluate_replay = self.replayer(self._evaluate_launches)
+        self._reset_replay = self.replayer(reset_launches)
+        self._screen_replay = self.replayer(screen_launches)
         if self._is_cuda:
             self._stream = wp.stream_from_torch(self._torch_device)
         self._key = self._binding_key()
@@ -281,6 +300,32 @@ class WarpEngine(Engine):
         one kernel launch per CPU slice."""
         self.check_binding()
         self._evaluate_replay()
+        return self._evaluation
+
+    def start(self, initial_x: torch.Tensor, initial_command: torch.Tensor,
+              mask: torch.Tensor | None = None, check: Callable[[], None] | None = None) -> torch.Tensor:
+        """``Engine.start`` in two launches per CPU slice: ``warp_kernels.screen_kernel`` screens the
+        rows against the reset ranges (``check`` runs only when it finds a bad row; one host read of
+        its codes), then ``warp_kernels.reset_kernel`` holds, projects and writes them and evaluates
+        the derived state of every env, which it returns (the engine's buffer, as :meth:`derived`).
+        The Dryden filters of the rows are zeroed in torch."""
+        if self._params_moved():  # a parameter tensor replaced (domain randomisation): bind it first
+            self.rebind()
+        self.check_binding()
+        staged_x, staged_command, staged_mask, codes = self._reset_inputs
+        staged_x.copy_(initial_x)
+        staged_command.copy_(initial_command)
+        if mask is None:
+            staged_mask.fill_(True)
+        else:
+            staged_mask.copy_(mask)
+        if check is not None:
+            self._screen_replay()
+            if bool(codes.any()):
+                check()
+        if self.turbulence is not None:
+            self.turbulence.reset(mask)
+        self._reset_replay()
         return self._evaluation
 
     def split(self, substeps: int) -> tuple[int, list[tuple[int, int]]]:

@@ -5,7 +5,8 @@ The state is read from and written back to the simulator's [N, S] float32 tensor
 inside the kernel one env's row is a padded :data:`StateVec`. Importing this module imports Warp but
 compiles nothing: Warp builds the module on the first launch and caches the binary on disk.
 
-There is no reset kernel: resets are masked writes that the engine makes to the same memory.
+A reset is :func:`reset_kernel` (the masked write of the initial rows, projected, and the derived state
+of the batch in one launch), or masked torch writes into the same memory on the other engines.
 The Dryden turbulence update (``wind.dryden_step_wp``) runs at the start of the step kernel, once per
 step, so the gusts it writes act over the whole step.
 """
@@ -21,7 +22,18 @@ from .dynamics import derivative_wp, evaluate_wp, project_wp
 from .params import WarpParams
 from .propulsion import motor_thrust_wp
 from .rotations import quaternion_to_euler_wp, rotation_matrix_wp
-from .state import ANGULAR_RATE_START, DOWN_INDEX, QUATERNION_START, THROTTLE_START, VELOCITY_START, StateVec
+from .state import (
+    ANGULAR_RATE_START,
+    DOWN_INDEX,
+    MAX_RESET_POSITION,
+    MAX_RESET_RATE,
+    MAX_RESET_SPEED,
+    MIN_QUATERNION_NORM,
+    QUATERNION_START,
+    THROTTLE_START,
+    VELOCITY_START,
+    StateVec,
+)
 from .wind import NUM_FILTER_STATES, NUM_NOISE, Vec6, Vec8, dryden_step_wp
 
 forward_only(__name__)
@@ -69,6 +81,8 @@ _VELOCITY_NED, _EULER = DERIVED_OFFSET["velocity_ned"], DERIVED_OFFSET["euler"]
 _AERO_FORCE, _AERO_MOMENT = DERIVED_OFFSET["aero_force_body"], DERIVED_OFFSET["aero_moment_body"]
 _MOTOR_THRUST, _H_OVER_B = DERIVED_OFFSET["motor_thrust"], DERIVED_OFFSET["ge_h_over_b"]
 _GE_LIFT, _GE_DRAG = DERIVED_OFFSET["ge_lift_factor"], DERIVED_OFFSET["ge_drag_factor"]
+MIN_NORM, MAX_SPEED = wp.constant(MIN_QUATERNION_NORM), wp.constant(MAX_RESET_SPEED)
+MAX_POSITION, MAX_RATE = wp.constant(MAX_RESET_POSITION), wp.constant(MAX_RESET_RATE)
 #: Turbulence modes of the step kernel: off, noise from the Warp streams, noise read from an array.
 TURBULENCE_OFF, TURBULENCE_RANDOM, TURBULENCE_EXTERNAL = 0, 1, 2
 
@@ -221,20 +235,12 @@ def derivative_kernel(
     flush_denormals_end(saved)
 
 
-@wp.kernel
-def evaluate_kernel(
-    x: wp.array2d(dtype=wp.float32),
-    wind_ned: wp.array(dtype=wp.vec3),
-    gust_velocity_body: wp.array(dtype=wp.vec3),
-    gust_rate_body: wp.array(dtype=wp.vec3),
-    p: WarpParams,
-    out: wp.array2d(dtype=wp.float32),
-    offset: int,
-):
-    """out[i] <- the derived state of env i = offset + tid in the columns of ``derived.DERIVED_FIELDS``
-    (twin of ``dynamics.derived_columns``): one launch (per CPU slice) instead of the torch model."""
-    i = wp.tid() + offset
-    saved = flush_denormals_begin()
+@wp.func
+def write_derived(x: wp.array2d(dtype=wp.float32), wind_ned: wp.array(dtype=wp.vec3),
+                  gust_velocity_body: wp.array(dtype=wp.vec3), gust_rate_body: wp.array(dtype=wp.vec3),
+                  p: WarpParams, out: wp.array2d(dtype=wp.float32), i: int):
+    """out[i] <- the derived state of env i in the columns of ``derived.DERIVED_FIELDS`` (twin of
+    ``dynamics.derived_columns``)."""
     s = load_state(x, i, x.shape[1])
     ev = evaluate_wp(s, wind_ned[i], gust_velocity_body[i], gust_rate_body[i], p, i)
     rot = ev.rotation
@@ -266,4 +272,76 @@ def evaluate_kernel(
     out[i, _H_OVER_B] = ev.wing_height / p.span[i]
     out[i, _GE_LIFT] = ev.kappa_lift
     out[i, _GE_DRAG] = ev.kappa_drag
+
+
+@wp.kernel
+def evaluate_kernel(
+    x: wp.array2d(dtype=wp.float32),
+    wind_ned: wp.array(dtype=wp.vec3),
+    gust_velocity_body: wp.array(dtype=wp.vec3),
+    gust_rate_body: wp.array(dtype=wp.vec3),
+    p: WarpParams,
+    out: wp.array2d(dtype=wp.float32),
+    offset: int,
+):
+    """out[i] <- the derived state of env i = offset + tid (:func:`write_derived`): one launch (per CPU
+    slice) instead of the torch model."""
+    i = wp.tid() + offset
+    saved = flush_denormals_begin()
+    write_derived(x, wind_ned, gust_velocity_body, gust_rate_body, p, out, i)
+    flush_denormals_end(saved)
+
+
+@wp.kernel
+def screen_kernel(initial_x: wp.array2d(dtype=wp.float32), initial_command: wp.array(dtype=wp.vec4),
+                  mask: wp.array(dtype=wp.bool), codes: wp.array(dtype=wp.int32), offset: int):
+    """codes[i] <- 1 when env i = offset + tid is in ``mask`` and its initial row fails a reset check of
+    ``Simulator`` (a NaN or Inf, a command outside [-1, 1], a quaternion shorter than
+    ``MIN_QUATERNION_NORM``, a position, speed or body rate beyond ``MAX_RESET_*``, a height below the
+    ground), else 0: the device's screen before ``Simulator``'s own check, which names the rows."""
+    i = wp.tid() + offset
+    bad = int(0)  # noqa: UP018, RUF046 (a mutable Warp local)
+    if mask[i]:
+        size = initial_x.shape[1]
+        for k in range(size):
+            if not wp.isfinite(initial_x[i, k]):
+                bad = 1
+        u = initial_command[i]
+        for k in range(4):
+            if not wp.isfinite(u[k]) or wp.abs(u[k]) > 1.0:
+                bad = 1
+        s = load_state(initial_x, i, size)
+        q = wp.vec4(s[QUATERNION_START], s[QUATERNION_START + 1], s[QUATERNION_START + 2],
+                    s[QUATERNION_START + 3])
+        velocity = wp.vec3(s[VELOCITY_START], s[VELOCITY_START + 1], s[VELOCITY_START + 2])
+        if wp.length(q) < MIN_NORM or wp.length(velocity) > MAX_SPEED or s[DOWN_INDEX] > 0.0:
+            bad = 1
+        for k in range(3):
+            if wp.abs(s[k]) > MAX_POSITION or wp.abs(s[ANGULAR_RATE_START + k]) > MAX_RATE:
+                bad = 1
+    codes[i] = bad
+
+
+@wp.kernel
+def reset_kernel(e: EngineViews, p: WarpParams, initial_x: wp.array2d(dtype=wp.float32),
+                 initial_command: wp.array(dtype=wp.vec4), mask: wp.array(dtype=wp.bool),
+                 out: wp.array2d(dtype=wp.float32), offset: int):
+    """Env i = offset + tid: when ``mask[i]``, x[i] <- project(hold_ideal(initial_x[i])) under
+    ``initial_command[i]`` (twins of ``dynamics.hold_command`` and ``dynamics.project``), the command
+    written, the clock, gusts and crash flag zeroed (``Engine.reset``); then, every env, out[i] <- its
+    derived state (:func:`write_derived`): the reset and the state it publishes in one launch."""
+    i = wp.tid() + offset
+    if mask[i]:
+        size = e.x.shape[1]
+        u = initial_command[i]
+        s = project_wp(hold_ideal_wp(load_state(initial_x, i, size), u, p, i), p, i)
+        for k in range(size):
+            e.x[i, k] = s[k]
+        e.command[i] = u
+        e.time[i] = 0.0
+        e.gust_velocity_body[i] = wp.vec3(0.0, 0.0, 0.0)
+        e.gust_rate_body[i] = wp.vec3(0.0, 0.0, 0.0)
+        e.crashed[i] = False
+    saved = flush_denormals_begin()
+    write_derived(e.x, e.wind_ned, e.gust_velocity_body, e.gust_rate_body, p, out, i)
     flush_denormals_end(saved)
