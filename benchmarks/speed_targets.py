@@ -131,7 +131,7 @@ def gym_targets(args: argparse.Namespace) -> list[Target]:
                f"JSBSim {jsbsim.median:,.0f} steps/s ({spread(jsbsim)})"),
         Target(f"FalconVectorEnv, {args.vector_envs:,} envs ({hz})", vector.median, spread(vector), 500_000,
                "env-steps/s", f"physics alone {floor.median:,.0f} ({spread(floor)}); random actions, "
-               "so episodes end and reset all the time"),
+               "with Gymnasium's autoreset of the envs that end"),
     ]
 
 
