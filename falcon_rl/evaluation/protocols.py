@@ -30,7 +30,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, fields
 
 import torch
-from tensordict import TensorDictBase
+from tensordict import TensorDict, TensorDictBase
 from tensordict.nn import TensorDictModuleBase
 from tqdm import tqdm
 
@@ -87,7 +87,8 @@ class ProtocolResult:
 def _rollout(env: FixedWingEnv, policy: TensorDictModuleBase, steps: int, label: str
              ) -> tuple[TensorDictBase, float]:
     """Roll ``steps`` env steps with a progress bar (on a terminal; none in a log file); returns
-    (rollout [N, T], s per policy call)."""
+    (rollout [N, T] holding the "next" entries of every step, the only ones the metrics and traces
+    read; s per policy call)."""
     td = env.reset()
     frames, policy_seconds = [], 0.0
     with torch.no_grad():
@@ -96,10 +97,11 @@ def _rollout(env: FixedWingEnv, policy: TensorDictModuleBase, steps: int, label:
             td = policy(td)
             policy_seconds += time.perf_counter() - t0
             td = env.step(td)
-            frames.append(td.clone())
+            frames.append(td.get("next").clone())
             td = env.step_mdp(td)
-    rollout = torch.stack(frames, dim=1)
-    rollout.set("next", flat_scalars(rollout["next"]))  # [N, T] series for the metrics and figures
+    stacked = torch.stack(frames, dim=1)
+    # [N, T] series for the metrics and figures
+    rollout = TensorDict({"next": flat_scalars(stacked)}, batch_size=stacked.batch_size)
     return rollout, policy_seconds / max(steps, 1)
 
 
