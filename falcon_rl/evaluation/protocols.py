@@ -30,7 +30,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, fields
 
 import torch
-from tensordict import TensorDict, TensorDictBase
+from tensordict import TensorDictBase
 from tensordict.nn import TensorDictModuleBase
 from tqdm import tqdm
 
@@ -87,8 +87,8 @@ class ProtocolResult:
 def _rollout(env: FixedWingEnv, policy: TensorDictModuleBase, steps: int, label: str
              ) -> tuple[TensorDictBase, float]:
     """Roll ``steps`` env steps with a progress bar (on a terminal; none in a log file); returns
-    (rollout [N, T] holding the "next" entries of every step, the only ones the metrics and traces
-    read; s per policy call)."""
+    (rollout [N, T] of every step's "action" and "next" entries, what metrics and traces read: the
+    observation and state a step starts from are the previous step's "next"; s per policy call)."""
     td = env.reset()
     frames, policy_seconds = [], 0.0
     with torch.no_grad():
@@ -97,11 +97,10 @@ def _rollout(env: FixedWingEnv, policy: TensorDictModuleBase, steps: int, label:
             td = policy(td)
             policy_seconds += time.perf_counter() - t0
             td = env.step(td)
-            frames.append(td.get("next").clone())
+            frames.append(td.select("action", "next").clone())
             td = env.step_mdp(td)
-    stacked = torch.stack(frames, dim=1)
-    # [N, T] series for the metrics and figures
-    rollout = TensorDict({"next": flat_scalars(stacked)}, batch_size=stacked.batch_size)
+    rollout = torch.stack(frames, dim=1)
+    rollout.set("next", flat_scalars(rollout["next"]))  # [N, T] series for the metrics and figures
     return rollout, policy_seconds / max(steps, 1)
 
 
@@ -128,7 +127,8 @@ def tracking_protocol(task: str, metrics: EpisodeMetrics, traces: tuple, airfram
                       device: str = "cpu", episode_seconds: float | None = None,
                       **env_options) -> ProtocolResult:
     """Fly ``episodes`` envs of ``task`` for one horizon (the task's own unless ``episode_seconds``) and
-    score them with ``metrics(rollout) -> {name: [N]}`` (a "survival" entry included); the summary is
+    score them with ``metrics(rollout) -> {name: [N]}`` (``rollout`` [N, T]: each step's "action" and
+    "next" entries; a "survival" entry included); the summary is
     :func:`~.metrics.summarize`'s, angles in degrees. ``traces`` are the rollout keys kept for figures.
     The building block of the task protocols below (and of a user's own task)."""
     if episode_seconds is not None:
