@@ -134,11 +134,12 @@ def test_differential_thrust_through_the_env(backend):
     assert math.isfinite(float(td["reward"].sum()))
 
 
-def test_warp_reset_launch_equals_the_torch_writes():
-    """``WarpEngine.start`` (one launch: the masked rows held, projected and written, then the batch's
-    derived state) leaves the buffers bit for bit as the contract's torch writes do and returns what
-    ``derived()`` evaluates; rows outside the mask, their gusts, clocks and crash flags included, are
-    untouched."""
+@pytest.mark.parametrize("derive", [True, False])
+def test_warp_reset_launch_equals_the_torch_writes(derive):
+    """``WarpEngine.start`` (one launch: the masked rows held, projected and written, then, with
+    ``derive``, the batch's derived state) leaves the buffers bit for bit as the contract's torch writes
+    do and returns what ``derived()`` evaluates (None without ``derive``); rows outside the mask, their
+    gusts, clocks and crash flags included, are untouched."""
     sims = [Simulator("volantex_ranger", num_envs=16, backend="warp", turbulence="moderate", seed=5)
             for _ in range(2)]
     command = _command(sims[0])
@@ -155,14 +156,17 @@ def test_warp_reset_launch_equals_the_torch_writes():
     mask = torch.zeros(16, dtype=torch.bool)
     mask[[0, 2, 5, 11]] = True
     before = sims[0].x.clone()
-    derived = sims[0].engine.start(initial, start_command, mask)
+    derived = sims[0].engine.start(initial, start_command, mask, derive=derive)
     assert Engine.start(sims[1].engine, initial, start_command, mask) is None
     one, two = sims[0].engine, sims[1].engine
     for name in ("x", "command", "time", "gust_velocity_body", "gust_rate_body", "crashed"):
         assert torch.equal(getattr(one, name), getattr(two, name)), name
     assert torch.equal(one.turbulence.filter, two.turbulence.filter)
     assert torch.equal(one.x[~mask], before[~mask]) and bool(one.crashed[9]) and not bool(one.crashed[2])
-    assert torch.equal(derived.clone(), one.derived())
+    if derive:
+        assert torch.equal(derived.clone(), one.derived())
+    else:
+        assert derived is None
 
 
 def test_the_warp_reset_screen_calls_the_check_for_bad_rows_only():

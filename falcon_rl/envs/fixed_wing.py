@@ -266,24 +266,27 @@ class FixedWingEnv(EnvBase):
             self._set_seed(seed)
         n = self.config.num_envs
         mask = None if tensordict is None else tensordict.get("_reset", None)
-        observation, state = self.reset_tensors(mask)
+        observation, state = self.reset_tensors(mask, with_state=not self.config.lean)
         reason = torch.zeros(n, dtype=torch.long, device=self.device)
         no = torch.zeros(n, 1, dtype=torch.bool, device=self.device)
         return self._output(observation, state, reason, no, reward=None)
 
-    def reset_tensors(self, mask: torch.Tensor | None = None) -> tuple[torch.Tensor, TensorDictBase]:
+    def reset_tensors(self, mask: torch.Tensor | None = None, with_state: bool = True
+                      ) -> tuple[torch.Tensor, TensorDictBase | None]:
         """Reset the rows of ``mask`` ([N] or [N, 1] bool; all when None) without TensorDicts in or out
-        (the core of ``reset``, for the Gymnasium paths): (observation [N, D], simulator state)."""
+        (the core of ``reset``, for the Gymnasium paths): (observation [N, D], simulator state). With
+        ``with_state=False`` the state is None when the task starts episodes in a fused launch
+        (``Task.fused_starter``), which reads the simulator's buffers: the state is then not built."""
         n = self.config.num_envs
         mask = (torch.ones(n, dtype=torch.bool, device=self.device) if mask is None
                 else mask.reshape(n).to(self.device, torch.bool))
         initial = self.task.sample_initial(mask)
-        state = self.sim.reset(initial, mask=mask)
-        if not isinstance(state, TensorDictBase):  # a facade whose reset returns nothing
+        publish = with_state or not self.config.fused or self.task.fused_starter() is None
+        state = self.sim.reset(initial, mask=mask, publish=publish)
+        if publish and not isinstance(state, TensorDictBase):  # a facade whose reset returns nothing
             state = self.sim.state
         self.step_count.masked_fill_(mask, 0)
-        self.task.after_reset(state, mask)
-        return self.task.observe(state), state
+        return self.task.start_episodes(state, mask, fused=self.config.fused), state
 
     def observe(self, state: TensorDictBase) -> torch.Tensor:
         """[N, D] observation the task makes of ``state`` (fields as under ("state", ...), e.g. a

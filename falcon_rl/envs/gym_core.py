@@ -86,7 +86,7 @@ class TensorCore:
         if mask is not None and self.current is None:
             raise RuntimeError("a partial reset needs a full reset first")
         rows = None if mask is None else torch.as_tensor(mask, device=self.env.device)
-        fresh, _ = self.env.reset_tensors(rows)
+        fresh, _ = self.env.reset_tensors(rows, with_state=False)
         observation, *entries = self._host([fresh, *self._entries()])
         if mask is not None:
             observation = np.where(mask[:, None], observation, self.current)
@@ -107,7 +107,7 @@ class TensorCore:
         if autoreset:
             done = (out.reason > 0) | out.truncated
             if bool(done.any()):
-                fresh, _ = env.reset_tensors(done)
+                fresh, _ = env.reset_tensors(done, with_state=False)
                 tensors += [fresh, *self._entries()]
         stepped, reward, reason, truncated, non_finite, *entries = self._host(tensors)
         reason = reason.astype(np.int64)  # a copy: the env may reuse the tensor behind a view

@@ -209,8 +209,8 @@ class Engine(ABC):
         self.after_reset()
 
     def start(self, initial_x: torch.Tensor, initial_command: torch.Tensor,
-              mask: torch.Tensor | None = None, check: Callable[[], None] | None = None
-              ) -> torch.Tensor | None:
+              mask: torch.Tensor | None = None, check: Callable[[], None] | None = None,
+              derive: bool = True) -> torch.Tensor | None:
         """:meth:`reset` the rows of ``mask`` [N] bool (all when None) from an unprojected
         ``initial_x`` [N, S] under ``initial_command`` [N, 4]: the ideal actuators put on the command
         and the step's projection applied first (``hold_command``, ``project``). ``check``: the
@@ -218,7 +218,7 @@ class Engine(ABC):
         backend that screens the rows against the reset ranges (``state.MAX_RESET_*``) on the device
         runs it only when its screen finds a bad row. Returns the batch's [N, DERIVED_WIDTH] derived
         state when the backend evaluated it on the way (the engine's buffer, overwritten by the next
-        evaluation), else None."""
+        evaluation), else None; ``derive=False`` tells a backend that the caller will not read it."""
         if check is not None:
             check()
         self.reset(project(hold_command(initial_x, initial_command, self.params), self.params),

@@ -230,8 +230,9 @@ class Simulator:
         return self._default, self._default_command
 
     def reset(self, initial: Mapping[str, torch.Tensor] | torch.Tensor | None = None,
-              mask: torch.Tensor | None = None) -> TensorDict:
-        """Reset the envs selected by ``mask`` [N] bool (all when None).
+              mask: torch.Tensor | None = None, publish: bool = True) -> TensorDict | None:
+        """Reset the envs selected by ``mask`` [N] bool (all when None); returns :attr:`state`, or None
+        with ``publish=False`` (a caller that reads the buffers instead: the state is not built).
 
         ``initial`` is a full state tensor [N, S] / [S], or a mapping of named fields
         (position_ned, quaternion or euler, velocity_body, angular_rate_body, surface_position,
@@ -255,8 +256,8 @@ class Simulator:
         elif initial is not None:
             new_x, new_cmd = self._compose_initial(initial, new_x, new_cmd)
         derived = self.engine.start(new_x, new_cmd, mask,
-                                    check=lambda: self._check_initial(new_x, new_cmd, mask))
-        return self.state_and_derived(derived)[0]
+                                    check=lambda: self._check_initial(new_x, new_cmd, mask), derive=publish)
+        return self.state_and_derived(derived)[0] if publish else None
 
     def _check_initial(self, x: torch.Tensor, command: torch.Tensor, mask: torch.Tensor | None) -> None:
         """ValueError (one line) unless the reset rows of ``x`` [N, S] and ``command`` [N, 4] are

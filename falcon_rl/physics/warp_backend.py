@@ -113,7 +113,7 @@ class WarpEngine(Engine):
                 "_evaluate_launches", "_substeps", "_evaluation", "_stream", "threads", "slices",
                 "_params_object", "_params", "_params_ptrs", "_turb_placeholders", "_turb_object",
                 "_stop", "generation", "_views", "_step_replay", "_step_replays", "_evaluate_replay",
-                "_reset_inputs", "_reset_replay", "_screen_replay")
+                "_reset_inputs", "_reset_replays", "_screen_replay")
 
     @classmethod
     def placement(cls, num_envs: int, device: torch.device, dtype: torch.dtype
@@ -165,7 +165,7 @@ class WarpEngine(Engine):
         self._reset_inputs = (torch.empty_like(self.x), torch.empty_like(self.command),
                               torch.empty(self.num_envs, device=setup.device, dtype=torch.bool),
                               torch.zeros(self.num_envs, device=setup.device, dtype=torch.int32))
-        self._reset_replay: Callable[[], None] = lambda: None
+        self._reset_replays: dict[bool, Callable[[], None]] = {}
         self._screen_replay: Callable[[], None] = lambda: None
         self._stream: Any = None
         threads = setup.options.get("cpu_threads")
@@ -244,16 +244,18 @@ class WarpEngine(Engine):
         initial_x, initial_command, mask, codes = self._reset_inputs
         staged = [wp.from_torch(initial_x), wp.from_torch(initial_command, dtype=wp.vec4),
                   wp.from_torch(mask, dtype=wp.bool)]
-        reset_launches, screen_launches = (
+        reset_inputs = [views, params, *staged, wp.from_torch(self._evaluation)]
+        reset_launches, bare_reset_launches, screen_launches = (
             [wp.launch(kernel, dim=count, inputs=[*inputs, offset], device=self.device, record_cmd=True)
              for offset, count in self.slices]
-            for kernel, inputs in ((self._kernels.reset_kernel, [views, params, *staged,
-                                                                 wp.from_torch(self._evaluation)]),
+            for kernel, inputs in ((self._kernels.reset_kernel, [*reset_inputs, 1]),
+                                   (self._kernels.reset_kernel, [*reset_inputs, 0]),
                                    (self._kernels.screen_kernel, [*staged, wp.from_torch(codes)])))
         self._step_replay = self.replayer(self._launches)
         self._step_replays = {(self._substeps, self._stop): self._step_replay}
         self._evaluate_replay = self.replayer(self._evaluate_launches)
-        self._reset_replay = self.replayer(reset_launches)
+        #: The reset's replays by whether they evaluate the batch's derived state.
+        self._reset_replays = {True: self.replayer(reset_launches), False: self.replayer(bare_reset_launches)}
         self._screen_replay = self.replayer(screen_launches)
         if self._is_cuda:
             self._stream = wp.stream_from_torch(self._torch_device)
@@ -303,12 +305,14 @@ class WarpEngine(Engine):
         return self._evaluation
 
     def start(self, initial_x: torch.Tensor, initial_command: torch.Tensor,
-              mask: torch.Tensor | None = None, check: Callable[[], None] | None = None) -> torch.Tensor:
+              mask: torch.Tensor | None = None, check: Callable[[], None] | None = None,
+              derive: bool = True) -> torch.Tensor | None:
         """``Engine.start`` in two launches per CPU slice: ``warp_kernels.screen_kernel`` screens the
         rows against the reset ranges (``check`` runs only when it finds a bad row; one host read of
-        its codes), then ``warp_kernels.reset_kernel`` holds, projects and writes them and evaluates
-        the derived state of every env, which it returns (the engine's buffer, as :meth:`derived`).
-        The Dryden filters of the rows are zeroed in torch."""
+        its codes), then ``warp_kernels.reset_kernel`` holds, projects and writes them and, with
+        ``derive``, evaluates the derived state of every env, which it returns (the engine's buffer,
+        as :meth:`derived`; None without ``derive``). The Dryden filters of the rows are zeroed in
+        torch."""
         if self._params_moved():  # a parameter tensor replaced (domain randomisation): bind it first
             self.rebind()
         self.check_binding()
@@ -325,8 +329,8 @@ class WarpEngine(Engine):
                 check()
         if self.turbulence is not None:
             self.turbulence.reset(mask)
-        self._reset_replay()
-        return self._evaluation
+        self._reset_replays[derive]()
+        return self._evaluation if derive else None
 
     def split(self, substeps: int) -> tuple[int, list[tuple[int, int]]]:
         """(threads, CPU slices) for launches of ``substeps`` physics steps each (the option

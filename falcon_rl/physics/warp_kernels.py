@@ -325,11 +325,12 @@ def screen_kernel(initial_x: wp.array2d(dtype=wp.float32), initial_command: wp.a
 @wp.kernel
 def reset_kernel(e: EngineViews, p: WarpParams, initial_x: wp.array2d(dtype=wp.float32),
                  initial_command: wp.array(dtype=wp.vec4), mask: wp.array(dtype=wp.bool),
-                 out: wp.array2d(dtype=wp.float32), offset: int):
+                 out: wp.array2d(dtype=wp.float32), derive: int, offset: int):
     """Env i = offset + tid: when ``mask[i]``, x[i] <- project(hold_ideal(initial_x[i])) under
     ``initial_command[i]`` (twins of ``dynamics.hold_command`` and ``dynamics.project``), the command
-    written, the clock, gusts and crash flag zeroed (``Engine.reset``); then, every env, out[i] <- its
-    derived state (:func:`write_derived`): the reset and the state it publishes in one launch."""
+    written, the clock, gusts and crash flag zeroed (``Engine.reset``); then, with ``derive`` != 0,
+    every env's out[i] <- its derived state (:func:`write_derived`): the reset and the state it
+    publishes in one launch."""
     i = wp.tid() + offset
     if mask[i]:
         size = e.x.shape[1]
@@ -342,6 +343,7 @@ def reset_kernel(e: EngineViews, p: WarpParams, initial_x: wp.array2d(dtype=wp.f
         e.gust_velocity_body[i] = wp.vec3(0.0, 0.0, 0.0)
         e.gust_rate_body[i] = wp.vec3(0.0, 0.0, 0.0)
         e.crashed[i] = False
-    saved = flush_denormals_begin()
-    write_derived(e.x, e.wind_ned, e.gust_velocity_body, e.gust_rate_body, p, out, i)
-    flush_denormals_end(saved)
+    if derive != 0:
+        saved = flush_denormals_begin()
+        write_derived(e.x, e.wind_ned, e.gust_velocity_body, e.gust_rate_body, p, out, i)
+        flush_denormals_end(saved)

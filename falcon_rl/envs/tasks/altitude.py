@@ -42,7 +42,8 @@ initial_altitude h_0, altitude_error h - h* (the error the metrics score) and re
 h - h_ref.
 
 On the warp backend the env's step runs :meth:`AltitudeTask.fused_step`: all of the above after the
-physics in one Warp kernel (``altitude_warp``) instead of ``Simulator.state`` and ~100 torch ops.
+physics in one Warp kernel (``altitude_warp``) instead of ``Simulator.state`` and ~100 torch ops; a
+reset starts the episodes (``after_reset`` and the observation) in one launch too.
 """
 
 from __future__ import annotations
@@ -270,6 +271,11 @@ class AltitudeTask(Task):
 
         return fused_stepper(self, AltitudeTask, _FUSED_METHODS, FusedAltitudeStep)
 
+    def fused_starter(self) -> FusedStep | None:
+        """The fused step, whose start kernel twins :meth:`after_reset` and :meth:`observe`
+        (``altitude_warp.altitude_start``), unless a subclass overrides one of them."""
+        return None if self.overrides(AltitudeTask, _FUSED_START_METHODS) else self.fused_stepper()
+
     def info(self) -> dict[str, torch.Tensor]:
         return {key: value.clone() for key, value in self.info_views().items()}
 
@@ -287,6 +293,8 @@ class AltitudeTask(Task):
 #: The methods :meth:`AltitudeTask.fused_step` fuses: a subclass that overrides one falls back to ``step``.
 _FUSED_METHODS: tuple[str, ...] = ("step", "advance", "update", "reward", "observe", "termination_checks",
                                    "termination_reason", "_update_reference", "_release_next_targets")
+#: The methods :meth:`AltitudeTask.fused_starter`'s launch twins besides those of the step.
+_FUSED_START_METHODS: tuple[str, ...] = ("after_reset", "_update_reference")
 
 #: The env this task is built with by default and every recipe trains on: control at 20 Hz
 #: (decimation 5 of the 10 ms physics step), so that gamma 0.99 looks ~5 s ahead; a survival bonus

@@ -12,6 +12,10 @@ NaN), so a broken row reads the same both ways.
 per CPU slice of the engine) and replays it each step; per step it runs two torch ops (the action copy
 and, with a target sequence, the random shift drawn from the task's generator exactly as the torch
 step draws it) and the launch: no allocation, no host synchronisation.
+
+:func:`altitude_start_kernel` is the start of episodes after a reset (``Task.start_episodes``): the
+twin of ``AltitudeTask.after_reset`` for the reset rows, then every env's reference, errors and
+observation (the observation written by the same :func:`write_observation` as the step's).
 """
 
 from __future__ import annotations
@@ -26,6 +30,7 @@ from ...constants import DEG, G0
 from ...physics._warp import forward_only
 from ...physics.warp_kernels import flush_denormals_begin, flush_denormals_end
 from .warp_common import (
+    FlightState,
     FusedStep,
     SimulatorViews,
     clamp_keep_nan,
@@ -135,6 +140,25 @@ def next_target(target: float, shift: wp.int64, table: wp.array(dtype=wp.float32
 
 
 @wp.func
+def write_observation(f: FlightState, c: AltitudeConstants, e_h: float, elevator_rate: float, integral: float,
+                      reference_rate: float, observation: wp.array2d(dtype=wp.float32), i: int):
+    """observation[i] <- the clipped observation [11] of env i (twin of ``AltitudeTask.observe``) from
+    its flight state, e_h = h - h_ref, the elevator rate (rad/s), int(e_h) and hdot_ref."""
+    lim = c.observation_clip
+    observation[i, 0] = clip(e_h / 25.0, lim)
+    observation[i, 1] = clip(f.angular_rate[1] / 2.0, lim)
+    observation[i, 2] = clip((f.airspeed - c.trim_airspeed) / c.airspeed_sigma, lim)
+    observation[i, 3] = clip(f.euler[1] / c.pitch_scale, lim)
+    observation[i, 4] = clip(f.velocity_ned[2] / c.climb_rate_limit, lim)
+    observation[i, 5] = clip(f.alpha / c.alpha_scale, lim)
+    observation[i, 6] = clip(normalised_surface(f, 0), lim)
+    observation[i, 7] = clip(elevator_rate / c.elevator_rate_scale, lim)
+    observation[i, 8] = clip(2.0 * f.throttle - 1.0, lim)
+    observation[i, 9] = clip(integral / 10.0, lim)
+    observation[i, 10] = clip(reference_rate / 5.0, lim)
+
+
+@wp.func
 def altitude_step(sim: SimulatorViews, buf: AltitudeBuffers, c: AltitudeConstants,
                   observation: wp.array2d(dtype=wp.float32), reward: wp.array(dtype=wp.float32),
                   reason: wp.array(dtype=wp.int64), i: int):
@@ -200,19 +224,7 @@ def altitude_step(sim: SimulatorViews, buf: AltitudeBuffers, c: AltitudeConstant
                  - c.w_energy_rate * clamp_max_keep_nan(wp.abs(energy_error), c.energy_rate_cap))
     reason[i] = termination_code(f, c.stall_alpha, c.stall_speed, False)
     buf.previous_action[i] = action
-    # observation, clipped
-    lim = c.observation_clip
-    observation[i, 0] = clip(e_h / 25.0, lim)
-    observation[i, 1] = clip(pitch_rate / 2.0, lim)
-    observation[i, 2] = clip(e_v / c.airspeed_sigma, lim)
-    observation[i, 3] = clip(f.euler[1] / c.pitch_scale, lim)
-    observation[i, 4] = clip(f.velocity_ned[2] / c.climb_rate_limit, lim)
-    observation[i, 5] = clip(f.alpha / c.alpha_scale, lim)
-    observation[i, 6] = clip(normalised_surface(f, 0), lim)
-    observation[i, 7] = clip(elevator_rate / c.elevator_rate_scale, lim)
-    observation[i, 8] = clip(2.0 * f.throttle - 1.0, lim)
-    observation[i, 9] = clip(integral / 10.0, lim)
-    observation[i, 10] = clip(ref[1] / 5.0, lim)
+    write_observation(f, c, e_h, elevator_rate, integral, ref[1], observation, i)
 
 
 @wp.kernel
@@ -223,6 +235,45 @@ def altitude_step_kernel(sim: SimulatorViews, buf: AltitudeBuffers, c: AltitudeC
     i = wp.tid() + offset
     saved = flush_denormals_begin()
     altitude_step(sim, buf, c, observation, reward, reason, i)
+    flush_denormals_end(saved)
+
+
+@wp.func
+def altitude_start(sim: SimulatorViews, buf: AltitudeBuffers, c: AltitudeConstants,
+                   observation: wp.array2d(dtype=wp.float32), mask: wp.array(dtype=wp.bool), i: int):
+    """The start of env i's episode when ``mask[i]``, its physics reset already written (twin of
+    ``AltitudeTask.after_reset``: clock, ramp time, filters and previous action zeroed, elevator and
+    airspeed remembered), then, every env, the reference ramp, the errors and the observation [N, 11]
+    (twin of ``AltitudeTask.observe``)."""
+    f = flight_state(sim, i)
+    if mask[i]:
+        buf.time[i] = 0.0
+        buf.previous_action[i] = wp.vec2(0.0, 0.0)
+        buf.segment_time[i] = 0.0
+        buf.time_in_band[i] = 0.0
+        buf.error_integral[i] = 0.0
+        buf.previous_elevator[i] = f.surfaces[0]
+        buf.elevator_rate[i] = 0.0
+        buf.previous_airspeed[i] = f.airspeed
+        buf.airspeed_rate[i] = 0.0
+    target = buf.target[i]
+    ref = reference_wp(target, buf.segment_start[i], buf.climb_rate[i], buf.segment_time[i])
+    buf.reference[i] = ref[0]
+    buf.reference_rate[i] = ref[1]
+    e_h = f.height - ref[0]
+    buf.altitude_error[i] = f.height - target
+    buf.reference_error[i] = e_h
+    write_observation(f, c, e_h, buf.elevator_rate[i], buf.error_integral[i], ref[1], observation, i)
+
+
+@wp.kernel
+def altitude_start_kernel(sim: SimulatorViews, buf: AltitudeBuffers, c: AltitudeConstants,
+                          observation: wp.array2d(dtype=wp.float32), mask: wp.array(dtype=wp.bool),
+                          offset: int):
+    """:func:`altitude_start` of env i = offset + tid."""
+    i = wp.tid() + offset
+    saved = flush_denormals_begin()
+    altitude_start(sim, buf, c, observation, mask, i)
     flush_denormals_end(saved)
 
 
@@ -252,6 +303,7 @@ class FusedAltitudeStep(FusedStep):
 
     kernel = altitude_step_kernel
     kernel_func = altitude_step
+    start_kernel = altitude_start_kernel
     task: Task
 
     def __init__(self, task: Task):

@@ -7,6 +7,10 @@ climb-rate and airspeed errors from ``warp_common.flight_state``, and writes the
 termination reason and the clipped observation. The random stream's uniforms (N x 4 per step, drawn
 whether or not a target expires) are drawn in torch from the task's generator before the launch, as
 ``RandomCommandStream.step`` draws them.
+
+:func:`attitude_start_kernel` is the start of episodes after a reset (``Task.start_episodes``): the
+twin of ``AttitudeTask.after_reset`` for the reset rows, then every env's errors and observation [N, 15]
+(written by the same ``write_observation`` as the step's).
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ from ...constants import DEG
 from ...physics._warp import forward_only
 from ...physics.warp_kernels import flush_denormals_begin, flush_denormals_end
 from .warp_common import (
+    FlightState,
     FusedStep,
     SimulatorViews,
     airspeed_margin_penalty_wp,
@@ -113,6 +118,30 @@ def random_stream_step(buf: AttitudeBuffers, c: AttitudeConstants, i: int) -> wp
 
 
 @wp.func
+def write_observation(f: FlightState, c: AttitudeConstants, errors: wp.vec3, previous_action: wp.vec4,
+                      observation: wp.array2d(dtype=wp.float32), i: int):
+    """observation[i] <- the clipped observation [15] of env i (twin of ``AttitudeTask.observe``) from
+    its flight state, tracking errors (e_phi, e_hdot, e_Va) and previous action."""
+    lim = c.observation_clip
+    for k in range(3):
+        observation[i, k] = clip(errors[k] / c.error_scale[k], lim)
+        observation[i, 5 + k] = clip(f.angular_rate[k] / 2.0, lim)
+    observation[i, 3] = clip(f.euler[0] / c.angle_scale, lim)
+    observation[i, 4] = clip(f.euler[1] / c.angle_scale, lim)
+    observation[i, 8] = clip(f.alpha / c.air_angle_scale, lim)
+    observation[i, 9] = clip(f.beta / c.air_angle_scale, lim)
+    observation[i, 10] = clip(f.velocity_ned[2] / c.climb_scale, lim)
+    for k in range(4):
+        observation[i, 11 + k] = clip(previous_action[k], lim)
+
+
+@wp.func
+def tracking_errors(f: FlightState, commanded: wp.vec3) -> wp.vec3:
+    """(e_phi, e_hdot, e_Va) of the flight state against the command (twin of ``_update_errors``)."""
+    return wp.vec3(f.euler[0], -f.velocity_ned[2], f.airspeed) - commanded
+
+
+@wp.func
 def attitude_step(sim: SimulatorViews, buf: AttitudeBuffers, c: AttitudeConstants,
                   observation: wp.array2d(dtype=wp.float32), reward: wp.array(dtype=wp.float32),
                   reason: wp.array(dtype=wp.int64), i: int):
@@ -130,7 +159,7 @@ def attitude_step(sim: SimulatorViews, buf: AttitudeBuffers, c: AttitudeConstant
         commanded = buf.table[int(wp.min(index, c.table_last))]
     buf.commanded[i] = commanded
     # update: tracking errors (e_phi, e_hdot, e_Va)
-    errors = wp.vec3(f.euler[0], -f.velocity_ned[2], f.airspeed) - commanded
+    errors = tracking_errors(f, commanded)
     buf.errors[i] = errors
     # reward
     action = buf.action[i]
@@ -142,18 +171,7 @@ def attitude_step(sim: SimulatorViews, buf: AttitudeBuffers, c: AttitudeConstant
                  - c.w_smooth * action_rate)
     reason[i] = termination_code(f, c.stall_alpha, c.stall_speed, False)
     buf.previous_action[i] = action
-    # observation, clipped
-    lim = c.observation_clip
-    for k in range(3):
-        observation[i, k] = clip(errors[k] / c.error_scale[k], lim)
-        observation[i, 5 + k] = clip(f.angular_rate[k] / 2.0, lim)
-    observation[i, 3] = clip(f.euler[0] / c.angle_scale, lim)
-    observation[i, 4] = clip(f.euler[1] / c.angle_scale, lim)
-    observation[i, 8] = clip(f.alpha / c.air_angle_scale, lim)
-    observation[i, 9] = clip(f.beta / c.air_angle_scale, lim)
-    observation[i, 10] = clip(f.velocity_ned[2] / c.climb_scale, lim)
-    for k in range(4):
-        observation[i, 11 + k] = clip(action[k], lim)
+    write_observation(f, c, errors, action, observation, i)
 
 
 @wp.kernel
@@ -164,6 +182,37 @@ def attitude_step_kernel(sim: SimulatorViews, buf: AttitudeBuffers, c: AttitudeC
     i = wp.tid() + offset
     saved = flush_denormals_begin()
     attitude_step(sim, buf, c, observation, reward, reason, i)
+    flush_denormals_end(saved)
+
+
+@wp.func
+def attitude_start(sim: SimulatorViews, buf: AttitudeBuffers, c: AttitudeConstants,
+                   observation: wp.array2d(dtype=wp.float32), mask: wp.array(dtype=wp.bool), i: int):
+    """The start of env i's episode when ``mask[i]``, its physics reset and its stream's reset already
+    written (twin of ``AttitudeTask.after_reset``: clock and previous action zeroed, the stream's or
+    the table's current command), then, every env, the tracking errors and the observation [N, 15]
+    (twin of ``AttitudeTask.observe``)."""
+    f = flight_state(sim, i)
+    if mask[i]:
+        buf.time[i] = 0.0
+        buf.previous_action[i] = wp.vec4(0.0)
+        if c.random != 0:
+            buf.commanded[i] = buf.stream_command[i]
+        else:
+            buf.commanded[i] = buf.table[int(wp.min(buf.step_index[i], c.table_last))]
+    errors = tracking_errors(f, buf.commanded[i])
+    buf.errors[i] = errors
+    write_observation(f, c, errors, buf.previous_action[i], observation, i)
+
+
+@wp.kernel
+def attitude_start_kernel(sim: SimulatorViews, buf: AttitudeBuffers, c: AttitudeConstants,
+                          observation: wp.array2d(dtype=wp.float32), mask: wp.array(dtype=wp.bool),
+                          offset: int):
+    """:func:`attitude_start` of env i = offset + tid."""
+    i = wp.tid() + offset
+    saved = flush_denormals_begin()
+    attitude_start(sim, buf, c, observation, mask, i)
     flush_denormals_end(saved)
 
 
@@ -204,6 +253,7 @@ class FusedAttitudeStep(FusedStep):
 
     kernel = attitude_step_kernel
     kernel_func = attitude_step
+    start_kernel = attitude_start_kernel
     task: Task
 
     def __init__(self, task: Task):

@@ -4,7 +4,7 @@ terminations, random draws from the env's generator and the bookkeeping of the p
 A task is one small module holding a config dataclass and a :class:`Task` subclass. The env calls
 
     initial = task.sample_initial(mask)      # before Simulator.reset(initial, mask)
-    task.after_reset(state, mask)            # reference and filter buffers of the reset rows
+    obs = task.start_episodes(state, mask)   # after_reset (buffers of the reset rows), then observe
     command = task.command(action)           # [N, A] checked action in [-1, 1] -> [N, 4] command
     obs, reward, reason = task.step(state, action)           # after the physics steps
     obs = task.observe(state)                # [N, D] scaled and clipped observation (after reset)
@@ -137,6 +137,11 @@ class FusedTaskStep(Protocol):
 
     def __call__(self, action: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]: ...
 
+    def start(self, mask: torch.Tensor) -> torch.Tensor:
+        """Start the episodes of the rows in ``mask`` [N] bool after their physics reset; returns every
+        env's observation [N, D] (a buffer the next call overwrites)."""
+        ...
+
 
 class Task(ABC):
     """Base of the flight tasks. N envs; A action channels; D observation entries."""
@@ -225,6 +230,25 @@ class Task(ABC):
         self.previous_action[mask] = 0.0
         self.time[mask] = 0.0
 
+    def start_episodes(self, state: TensorDictBase | None, mask: torch.Tensor, fused: bool = True
+                       ) -> torch.Tensor:
+        """[N, D] observation (a new tensor) after the rows in ``mask`` [N] bool were reset to ``state``,
+        the simulator's: :meth:`after_reset` then :meth:`observe`, or, with ``fused`` and a fused step
+        that has a start kernel (:meth:`fused_starter`), the same in one backend launch (parity tested),
+        which reads the simulator's buffers (``state`` may then be None)."""
+        starter = self.fused_starter() if fused else None
+        if starter is not None:
+            return starter.start(mask).clone()
+        if state is None:
+            raise ValueError(f"the {self.name} task needs the reset state to start episodes")
+        self.after_reset(state, mask)
+        return self.observe(state)
+
+    def fused_starter(self) -> FusedTaskStep | None:
+        """The fused step whose start kernel twins :meth:`after_reset` and :meth:`observe`
+        (``warp_common.FusedStep.start``), or None (the default: the task starts episodes in torch)."""
+        return None
+
     def command(self, action: torch.Tensor) -> torch.Tensor:
         """[N, A] action in [-1, 1] -> [N, 4] simulator command (trim in undriven channels)."""
         self.command_buffer[:, self.channels] = action.to(self.dtype).clamp(-1.0, 1.0)
@@ -285,6 +309,12 @@ class Task(ABC):
         termination reason [N] long), buffers that the next call overwrites. On the warp backend the env
         runs it inside its own one-launch step (``warp_env_step``) when nothing else overrides it."""
         return None
+
+    def overrides(self, owner: type, methods: tuple[str, ...]) -> bool:
+        """Whether this task's class overrides one of ``methods`` of ``owner`` (a fused twin of them then
+        does not apply)."""
+        cls = type(self)
+        return any(getattr(cls, name) is not getattr(owner, name) for name in methods)
 
     def fused_step(self, action: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor] | None:
         """The backend-fused twin of :meth:`step` (:meth:`fused_stepper`), or None when there is none:

@@ -5,6 +5,10 @@ backend).
 does: it advances the clock, computes the cross-track, course and altitude errors from
 ``warp_common.flight_state``, and writes the reward, the termination reason ("lost" after the shared
 reasons) and the clipped observation. The step draws no random numbers.
+
+:func:`path_following_start_kernel` is the start of episodes after a reset (``Task.start_episodes``): the
+twin of ``PathFollowingTask.after_reset`` for the reset rows, then every env's errors and observation [N, 17]
+(written by the same ``write_observation`` as the step's).
 """
 
 from __future__ import annotations
@@ -18,6 +22,7 @@ from ...constants import DEG
 from ...physics._warp import forward_only
 from ...physics.warp_kernels import flush_denormals_begin, flush_denormals_end
 from .warp_common import (
+    FlightState,
     FusedStep,
     SimulatorViews,
     airspeed_margin_penalty_wp,
@@ -74,14 +79,9 @@ class PathFollowingConstants:
 
 
 @wp.func
-def path_following_step(sim: SimulatorViews, buf: PathFollowingBuffers, c: PathFollowingConstants,
-                        observation: wp.array2d(dtype=wp.float32), reward: wp.array(dtype=wp.float32),
-                        reason: wp.array(dtype=wp.int64), i: int):
-    """One path-following step of env i after the physics: updates the buffers in place
-    and writes observation [N, 17], reward [N] and the termination reason [N] (0: flying)."""
-    f = flight_state(sim, i)
-    buf.time[i] = buf.time[i] + c.env_dt
-    # update: (e_y, chi_err, e_h)
+def path_errors(f: FlightState, buf: PathFollowingBuffers, c: PathFollowingConstants, i: int) -> wp.vec3:
+    """buf.errors[i] <- (e_y, chi_err, e_h) of env i against its path (twin of
+    ``PathFollowingTask.update``); returns them."""
     point = buf.path_point[i]
     course = buf.path_course[i]
     rel_north = f.position_ned[0] - point[0]
@@ -89,8 +89,45 @@ def path_following_step(sim: SimulatorViews, buf: PathFollowingBuffers, c: PathF
     cross_track = -wp.sin(course) * rel_north + wp.cos(course) * rel_east
     v = f.velocity_ned
     course_error = wrap_angle_wp(wp.atan2(v[1], v[0]) - course)
-    altitude_error = f.height - c.path_height
-    buf.errors[i] = wp.vec3(cross_track, course_error, altitude_error)
+    errors = wp.vec3(cross_track, course_error, f.height - c.path_height)
+    buf.errors[i] = errors
+    return errors
+
+
+@wp.func
+def write_observation(f: FlightState, c: PathFollowingConstants, errors: wp.vec3, previous_action: wp.vec4,
+                      observation: wp.array2d(dtype=wp.float32), i: int):
+    """observation[i] <- the clipped observation [17] of env i (twin of ``PathFollowingTask.observe``)
+    from its flight state, path errors and previous action."""
+    lim = c.observation_clip
+    observation[i, 0] = clip(errors[0] / 50.0, lim)
+    observation[i, 1] = clip(wp.sin(errors[1]), lim)
+    observation[i, 2] = clip(wp.cos(errors[1]), lim)
+    observation[i, 3] = clip(errors[2] / 25.0, lim)
+    observation[i, 4] = clip(f.velocity_ned[2] / c.climb_rate_limit, lim)
+    observation[i, 5] = clip((f.airspeed - c.cruise_speed) / c.airspeed_sigma, lim)
+    observation[i, 6] = clip(f.euler[0] / c.angle_scale, lim)
+    observation[i, 7] = clip(f.euler[1] / c.angle_scale, lim)
+    observation[i, 8] = clip(f.alpha / c.air_angle_scale, lim)
+    observation[i, 9] = clip(f.beta / c.air_angle_scale, lim)
+    for k in range(3):
+        observation[i, 10 + k] = clip(f.angular_rate[k] / 2.0, lim)
+    for k in range(4):
+        observation[i, 13 + k] = clip(previous_action[k], lim)
+
+
+@wp.func
+def path_following_step(sim: SimulatorViews, buf: PathFollowingBuffers, c: PathFollowingConstants,
+                        observation: wp.array2d(dtype=wp.float32), reward: wp.array(dtype=wp.float32),
+                        reason: wp.array(dtype=wp.int64), i: int):
+    """One path-following step of env i after the physics: updates the buffers in place
+    and writes observation [N, 17], reward [N] and the termination reason [N] (0: flying)."""
+    f = flight_state(sim, i)
+    buf.time[i] = buf.time[i] + c.env_dt
+    errors = path_errors(f, buf, c, i)
+    cross_track = errors[0]
+    course_error = errors[1]
+    altitude_error = errors[2]
     # reward
     action = buf.action[i]
     action_rate = wp.length_sq(action - buf.previous_action[i])
@@ -101,22 +138,7 @@ def path_following_step(sim: SimulatorViews, buf: PathFollowingBuffers, c: PathF
                  - c.w_smooth * action_rate)
     reason[i] = termination_code(f, c.stall_alpha, c.stall_speed, wp.abs(cross_track) > c.lost_distance)
     buf.previous_action[i] = action
-    # observation, clipped
-    lim = c.observation_clip
-    observation[i, 0] = clip(cross_track / 50.0, lim)
-    observation[i, 1] = clip(wp.sin(course_error), lim)
-    observation[i, 2] = clip(wp.cos(course_error), lim)
-    observation[i, 3] = clip(altitude_error / 25.0, lim)
-    observation[i, 4] = clip(v[2] / c.climb_rate_limit, lim)
-    observation[i, 5] = clip((f.airspeed - c.cruise_speed) / c.airspeed_sigma, lim)
-    observation[i, 6] = clip(f.euler[0] / c.angle_scale, lim)
-    observation[i, 7] = clip(f.euler[1] / c.angle_scale, lim)
-    observation[i, 8] = clip(f.alpha / c.air_angle_scale, lim)
-    observation[i, 9] = clip(f.beta / c.air_angle_scale, lim)
-    for k in range(3):
-        observation[i, 10 + k] = clip(f.angular_rate[k] / 2.0, lim)
-    for k in range(4):
-        observation[i, 13 + k] = clip(action[k], lim)
+    write_observation(f, c, errors, action, observation, i)
 
 
 @wp.kernel
@@ -130,12 +152,37 @@ def path_following_step_kernel(sim: SimulatorViews, buf: PathFollowingBuffers, c
     flush_denormals_end(saved)
 
 
+@wp.func
+def path_following_start(sim: SimulatorViews, buf: PathFollowingBuffers, c: PathFollowingConstants,
+                         observation: wp.array2d(dtype=wp.float32), mask: wp.array(dtype=wp.bool), i: int):
+    """The start of env i's episode when ``mask[i]``, its physics reset already written (twin of
+    ``PathFollowingTask.after_reset``: clock and previous action zeroed), then, every env, the path
+    errors and the observation [N, 17] (twin of ``PathFollowingTask.observe``)."""
+    f = flight_state(sim, i)
+    if mask[i]:
+        buf.time[i] = 0.0
+        buf.previous_action[i] = wp.vec4(0.0)
+    write_observation(f, c, path_errors(f, buf, c, i), buf.previous_action[i], observation, i)
+
+
+@wp.kernel
+def path_following_start_kernel(sim: SimulatorViews, buf: PathFollowingBuffers, c: PathFollowingConstants,
+                                observation: wp.array2d(dtype=wp.float32), mask: wp.array(dtype=wp.bool),
+                                offset: int):
+    """:func:`path_following_start` of env i = offset + tid."""
+    i = wp.tid() + offset
+    saved = flush_denormals_begin()
+    path_following_start(sim, buf, c, observation, mask, i)
+    flush_denormals_end(saved)
+
+
 class FusedPathFollowingStep(FusedStep):
     """The recorded launch of :func:`path_following_step_kernel` for one path-following task:
     observation [N, 17], reward [N], reason [N] long."""
 
     kernel = path_following_step_kernel
     kernel_func = path_following_step
+    start_kernel = path_following_start_kernel
     task: Task
 
     def __init__(self, task: Task):

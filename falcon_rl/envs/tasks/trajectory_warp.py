@@ -5,6 +5,10 @@ advances the clock and the reference point along its helix arc (closed form), ro
 and velocity errors into the heading frame using ``warp_common.flight_state``, and writes the reward,
 the termination reason ("lost" after the shared reasons) and the clipped observation. The step draws
 no random numbers.
+
+:func:`trajectory_start_kernel` is the start of episodes after a reset (``Task.start_episodes``): the
+twin of ``TrajectoryTask.after_reset`` for the reset rows, then every env's errors and observation [N, 17]
+(written by the same ``write_observation`` as the step's).
 """
 
 from __future__ import annotations
@@ -18,6 +22,7 @@ from ...constants import DEG
 from ...physics._warp import forward_only
 from ...physics.warp_kernels import flush_denormals_begin, flush_denormals_end
 from .warp_common import (
+    FlightState,
     FusedStep,
     SimulatorViews,
     airspeed_margin_penalty_wp,
@@ -81,46 +86,38 @@ def heading_frame(e: wp.vec3, sin_yaw: float, cos_yaw: float) -> wp.vec3:
 
 
 @wp.func
-def trajectory_step(sim: SimulatorViews, buf: TrajectoryBuffers, c: TrajectoryConstants,
-                    observation: wp.array2d(dtype=wp.float32), reward: wp.array(dtype=wp.float32),
-                    reason: wp.array(dtype=wp.int64), i: int):
-    """One trajectory-task step of env i after the physics: updates the buffers in place
-    and writes observation [N, 17], reward [N] and the termination reason [N] (0: flying)."""
-    f = flight_state(sim, i)
-    # advance: clock and reference point (p_ref, v_ref)
-    time = buf.time[i] + c.env_dt
-    buf.time[i] = time
+def reference_point(buf: TrajectoryBuffers, c: TrajectoryConstants, time: float, i: int):
+    """buf.reference_position[i], buf.reference_velocity[i] <- p_ref and v_ref of env i at ``time``
+    (twin of ``TrajectoryTask.advance_reference``)."""
     radius = buf.radius[i]
     turn = buf.turn[i]
     climb = buf.climb[i]
     angle = c.speed / radius * time
     s = wp.sin(angle)
     co = wp.cos(angle)
-    reference_position = buf.start[i] + wp.vec3(radius * s, turn * radius * (1.0 - co), -climb * time)
-    reference_velocity = wp.vec3(c.speed * co, turn * c.speed * s, -climb)
-    buf.reference_position[i] = reference_position
-    buf.reference_velocity[i] = reference_velocity
-    # update: errors, NED and heading frame
+    buf.reference_position[i] = buf.start[i] + wp.vec3(radius * s, turn * radius * (1.0 - co), -climb * time)
+    buf.reference_velocity[i] = wp.vec3(c.speed * co, turn * c.speed * s, -climb)
+
+
+@wp.func
+def update_errors(f: FlightState, buf: TrajectoryBuffers, i: int):
+    """The position and velocity errors of env i, NED and in the heading frame, into its buffers (twin
+    of ``TrajectoryTask.update``)."""
     yaw = f.euler[2]
     sin_yaw = wp.sin(yaw)
     cos_yaw = wp.cos(yaw)
-    e_p = f.position_ned - reference_position
-    position_error = heading_frame(e_p, sin_yaw, cos_yaw)
-    velocity_error = heading_frame(f.velocity_ned - reference_velocity, sin_yaw, cos_yaw)
+    e_p = f.position_ned - buf.reference_position[i]
     buf.position_error_ned[i] = e_p
-    buf.position_error[i] = position_error
-    buf.velocity_error[i] = velocity_error
-    # reward
-    distance = wp.length(position_error)
-    action = buf.action[i]
-    action_rate = wp.length_sq(action - buf.previous_action[i])
-    reward[i] = (c.w_position * gaussian_wp(distance, c.sigma_position)
-                 + c.w_velocity * gaussian_wp(wp.length(velocity_error), c.sigma_velocity)
-                 - c.w_energy * airspeed_margin_penalty_wp(f.airspeed, c.safe_airspeed)
-                 - c.w_smooth * action_rate)
-    reason[i] = termination_code(f, c.stall_alpha, c.stall_speed, distance > c.lost_distance)
-    buf.previous_action[i] = action
-    # observation, clipped
+    buf.position_error[i] = heading_frame(e_p, sin_yaw, cos_yaw)
+    buf.velocity_error[i] = heading_frame(f.velocity_ned - buf.reference_velocity[i], sin_yaw, cos_yaw)
+
+
+@wp.func
+def write_observation(f: FlightState, c: TrajectoryConstants, position_error: wp.vec3,
+                      velocity_error: wp.vec3, previous_action: wp.vec4,
+                      observation: wp.array2d(dtype=wp.float32), i: int):
+    """observation[i] <- the clipped observation [17] of env i (twin of ``TrajectoryTask.observe``)
+    from its flight state, heading-frame errors and previous action."""
     lim = c.observation_clip
     for k in range(3):
         observation[i, k] = clip(position_error[k] / 25.0, lim)
@@ -131,7 +128,33 @@ def trajectory_step(sim: SimulatorViews, buf: TrajectoryBuffers, c: TrajectoryCo
     observation[i, 11] = clip(f.alpha / c.air_angle_scale, lim)
     observation[i, 12] = clip(f.beta / c.air_angle_scale, lim)
     for k in range(4):
-        observation[i, 13 + k] = clip(action[k], lim)
+        observation[i, 13 + k] = clip(previous_action[k], lim)
+
+
+@wp.func
+def trajectory_step(sim: SimulatorViews, buf: TrajectoryBuffers, c: TrajectoryConstants,
+                    observation: wp.array2d(dtype=wp.float32), reward: wp.array(dtype=wp.float32),
+                    reason: wp.array(dtype=wp.int64), i: int):
+    """One trajectory-task step of env i after the physics: updates the buffers in place
+    and writes observation [N, 17], reward [N] and the termination reason [N] (0: flying)."""
+    f = flight_state(sim, i)
+    time = buf.time[i] + c.env_dt
+    buf.time[i] = time
+    reference_point(buf, c, time, i)
+    update_errors(f, buf, i)
+    position_error = buf.position_error[i]
+    velocity_error = buf.velocity_error[i]
+    # reward
+    distance = wp.length(position_error)
+    action = buf.action[i]
+    action_rate = wp.length_sq(action - buf.previous_action[i])
+    reward[i] = (c.w_position * gaussian_wp(distance, c.sigma_position)
+                 + c.w_velocity * gaussian_wp(wp.length(velocity_error), c.sigma_velocity)
+                 - c.w_energy * airspeed_margin_penalty_wp(f.airspeed, c.safe_airspeed)
+                 - c.w_smooth * action_rate)
+    reason[i] = termination_code(f, c.stall_alpha, c.stall_speed, distance > c.lost_distance)
+    buf.previous_action[i] = action
+    write_observation(f, c, position_error, velocity_error, action, observation, i)
 
 
 @wp.kernel
@@ -145,12 +168,40 @@ def trajectory_step_kernel(sim: SimulatorViews, buf: TrajectoryBuffers, c: Traje
     flush_denormals_end(saved)
 
 
+@wp.func
+def trajectory_start(sim: SimulatorViews, buf: TrajectoryBuffers, c: TrajectoryConstants,
+                     observation: wp.array2d(dtype=wp.float32), mask: wp.array(dtype=wp.bool), i: int):
+    """The start of env i's episode when ``mask[i]``, its physics reset already written (twin of
+    ``TrajectoryTask.after_reset``: clock and previous action zeroed), then, every env, the reference
+    point at its clock, the errors and the observation [N, 17] (twin of ``TrajectoryTask.observe``)."""
+    f = flight_state(sim, i)
+    if mask[i]:
+        buf.time[i] = 0.0
+        buf.previous_action[i] = wp.vec4(0.0)
+    reference_point(buf, c, buf.time[i], i)
+    update_errors(f, buf, i)
+    write_observation(f, c, buf.position_error[i], buf.velocity_error[i], buf.previous_action[i],
+                      observation, i)
+
+
+@wp.kernel
+def trajectory_start_kernel(sim: SimulatorViews, buf: TrajectoryBuffers, c: TrajectoryConstants,
+                            observation: wp.array2d(dtype=wp.float32), mask: wp.array(dtype=wp.bool),
+                            offset: int):
+    """:func:`trajectory_start` of env i = offset + tid."""
+    i = wp.tid() + offset
+    saved = flush_denormals_begin()
+    trajectory_start(sim, buf, c, observation, mask, i)
+    flush_denormals_end(saved)
+
+
 class FusedTrajectoryStep(FusedStep):
     """The recorded launch of :func:`trajectory_step_kernel` for one trajectory task: observation
     [N, 17], reward [N], reason [N] long."""
 
     kernel = trajectory_step_kernel
     kernel_func = trajectory_step
+    start_kernel = trajectory_start_kernel
     task: Task
 
     def __init__(self, task: Task):

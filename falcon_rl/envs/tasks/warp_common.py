@@ -10,11 +10,14 @@
 - :func:`termination_code`: the reasons of ``Task.termination_checks`` in the priority order of
   ``base.TERMINATION_REASONS`` (ground contact, alpha stall, speed stall, lost).
 - :class:`FusedStep`: binds zero-copy Warp views of the simulator's and the task's tensors, records
-  the task kernel's launch per CPU slice of the engine, replays it with ``sim.engine.run`` and binds
-  again when a simulator tensor it reads has moved; :func:`fused_stepper` is the shared ``fused_stepper``.
+  the task kernel's launch (and its start kernel's) per CPU slice of the engine, replays it with
+  ``sim.engine.run`` and binds again when a simulator tensor it reads has moved; :func:`fused_stepper`
+  is the shared ``fused_stepper``.
 
 A task kernel has the signature ``(sim: SimulatorViews, buf: <Buffers>, c: <Constants>, observation
-[N, D], reward [N], reason [N] int64, offset: int)`` and handles env i = offset + tid.
+[N, D], reward [N], reason [N] int64, offset: int)`` and handles env i = offset + tid. A task's start
+kernel (``FusedStep.start_kernel``: ``after_reset`` and ``observe`` after the physics reset, for
+``Task.start_episodes``) has ``(sim, buf, c, observation [N, D], mask [N] bool, offset)``.
 """
 
 from __future__ import annotations
@@ -254,11 +257,16 @@ class FusedStep:
     replaced); the task's own buffers and config are bound once (they are written in place).
 
     A subclass sets :attr:`kernel` and gives :meth:`task_inputs` (the kernel's ``buf`` and ``c``
-    structs); it draws the step's random numbers in :meth:`draw` (torch, the task's generator)."""
+    structs); it draws the step's random numbers in :meth:`draw` (torch, the task's generator). With a
+    :attr:`start_kernel` the start of episodes (``Task.start_episodes``) is one launch too."""
 
     kernel: ClassVar[Any]
     #: The task step's ``@wp.func`` that :attr:`kernel` wraps (the env-step kernel calls it too).
     kernel_func: ClassVar[Any]
+    #: A kernel ``(sim, buf, c, observation [N, D], mask [N] bool, offset)`` that starts the episodes of
+    #: the rows in ``mask`` after their physics reset (the task's ``after_reset``) and writes every
+    #: env's observation (its ``observe``); None: the task starts episodes in torch.
+    start_kernel: ClassVar[Any] = None
 
     def __init__(self, task: Task):
         self.task = task
@@ -268,8 +276,13 @@ class FusedStep:
         self.reason = torch.zeros(n, device=device, dtype=torch.long)
         self.action = torch.zeros(n, task.action_dim, device=device, dtype=torch.float32)
         self.device = warp_device(device)
+        #: [N] bool: the rows :meth:`start` starts (staged for its launch), and its observation [N, D] (a
+        #: buffer of its own: a caller may still read the step's after a reset).
+        self.start_mask = torch.zeros(n, device=device, dtype=torch.bool)
+        self.start_observation = torch.zeros_like(self.observation)
         self._launches: list[Any] = []
         self._replay: Callable[[], None] = lambda: None
+        self._start_replay: Callable[[], None] = lambda: None
         self._inputs: list[Any] = []
         self._key: tuple[int, ...] = ()
 
@@ -304,17 +317,36 @@ class FusedStep:
                                  "surface_min", "surface_max"), self._simulator_tensors(), strict=True):
             setattr(views, name, wp.from_torch(tensor) if name == "x" else warp_view(tensor))
         outputs = [wp.from_torch(self.observation), wp.from_torch(self.reward), warp_view(self.reason)]
-        self._inputs = [views, *self.task_inputs(), *outputs]
+        task_inputs = self.task_inputs()
+        self._inputs = [views, *task_inputs, *outputs]
         self._launches = [wp.launch(self.kernel, dim=count, inputs=[*self._inputs, offset],
                                     device=self.device, record_cmd=True)
                           for offset, count in self.task.sim.engine.slices]
         # The engine replays them as its own: on torch's current CUDA stream, the CPU slices on its
         # threads, one CPU slice as a captured graph.
-        self._replay = self.task.sim.engine.replayer(self._launches)
+        engine = self.task.sim.engine
+        self._replay = engine.replayer(self._launches)
+        if self.start_kernel is not None:
+            start_inputs = [views, *task_inputs, wp.from_torch(self.start_observation),
+                            wp.from_torch(self.start_mask)]
+            self._start_replay = engine.replayer([
+                wp.launch(self.start_kernel, dim=count, inputs=[*start_inputs, offset], device=self.device,
+                          record_cmd=True) for offset, count in engine.slices])
         self._key = self.binding_key()
 
     def draw(self) -> None:
         """Draw the step's random numbers into bound buffers (none by default)."""
+
+    def start(self, mask: torch.Tensor) -> torch.Tensor:
+        """Start the episodes of the rows in ``mask`` [N] bool, whose physics reset is written, with
+        :attr:`start_kernel`; returns every env's observation [N, D] (:attr:`start_observation`, which
+        the next call overwrites; the step's outputs are left as they are)."""
+        if self.start_kernel is None:
+            raise RuntimeError(f"{type(self).__name__} has no start kernel")
+        self.ensure_bound()
+        self.start_mask.copy_(mask)
+        self._start_replay()
+        return self.start_observation
 
     def __call__(self, action: torch.Tensor) -> StepOutputs:
         """(observation [N, D], reward [N], reason [N] long) of the step that applied ``action`` [N, A]."""
@@ -330,8 +362,7 @@ def fused_stepper(task: Task, owner: type, methods: tuple[str, ...], factory: ty
     """The shared body of a task's ``fused_stepper``: None when a subclass of ``owner`` overrides one of
     the fused ``methods`` (it then falls back to ``step``), else the task's ``factory`` step, built on
     the first call and kept in ``task._fused``."""
-    cls = type(task)
-    if any(getattr(cls, name) is not getattr(owner, name) for name in methods):
+    if task.overrides(owner, methods):
         return None
     fused = getattr(task, "_fused", None)
     if fused is None:
