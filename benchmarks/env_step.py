@@ -20,9 +20,9 @@ shared machine hits every case alike):
   and without resets: what the TorchRL env adds is the rest;
 - ``fused step (CUDA graph)``: the same step captured once in a CUDA graph and replayed (CUDA only): the
   step's device time without its host-side launch work;
-- ``partial reset``: ``FixedWingEnv.reset_tensors(mask)`` of the lean env with one env in the mask (a
-  different one each call), what a rollout's auto-reset runs for the envs that finished (the task's
-  draws, the reset checks, the physics' reset launch, the task's buffers and observation);
+- ``partial reset``: ``FixedWingEnv.reset_tensors(mask, with_state=False)`` of the lean env with one env
+  in the mask (a different one each call), what a rollout's auto-reset runs for the envs that finished
+  (the task's draws, the reset checks, the physics' reset launch, the start of the task's episodes);
 - ``env``, ``env lean``, ``env unfused``, ``env lean unfused``: the task env
   (``make_env(task, airframe, num_envs=N, backend, seed=0, decimation=d, lean=, fused=)``).
 
@@ -160,8 +160,8 @@ def fused_stepper(env: Any, graph: bool = False) -> Callable[[], None]:
 
 
 def partial_resetter(env: Any) -> Callable[[], None]:
-    """A call that resets one env of ``env`` (``reset_tensors`` with a one-row mask; the row moves on by
-    one each call), after a full reset."""
+    """A call that resets one env of ``env`` (``reset_tensors`` with a one-row mask, as the lean env's
+    TorchRL reset calls it; the row moves on by one each call), after a full reset."""
     env.reset()
     n = env.config.num_envs
     state = {"row": 0}
@@ -170,7 +170,7 @@ def partial_resetter(env: Any) -> Callable[[], None]:
         state["row"] = (state["row"] + 1) % n
         mask = torch.zeros(n, dtype=torch.bool, device=env.device)
         mask[state["row"]] = True
-        env.reset_tensors(mask)
+        env.reset_tensors(mask, with_state=False)
 
     return reset
 
