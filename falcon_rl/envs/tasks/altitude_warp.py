@@ -28,7 +28,6 @@ import warp as wp
 
 from ...constants import DEG, G0
 from ...physics._warp import forward_only
-from ...physics.warp_kernels import flush_denormals_begin, flush_denormals_end
 from .warp_common import (
     FlightState,
     FusedStep,
@@ -45,6 +44,7 @@ from .warp_common import (
     termination_code,
     torch_sign,
 )
+from .warp_task_kernels import task_kernels
 
 forward_only(__name__)
 
@@ -227,17 +227,6 @@ def altitude_step(sim: SimulatorViews, buf: AltitudeBuffers, c: AltitudeConstant
     write_observation(f, c, e_h, elevator_rate, integral, ref[1], observation, i)
 
 
-@wp.kernel
-def altitude_step_kernel(sim: SimulatorViews, buf: AltitudeBuffers, c: AltitudeConstants,
-                         observation: wp.array2d(dtype=wp.float32), reward: wp.array(dtype=wp.float32),
-                         reason: wp.array(dtype=wp.int64), offset: int):
-    """:func:`altitude_step` of env i = offset + tid (``offset``: first env of this CPU slice)."""
-    i = wp.tid() + offset
-    saved = flush_denormals_begin()
-    altitude_step(sim, buf, c, observation, reward, reason, i)
-    flush_denormals_end(saved)
-
-
 @wp.func
 def altitude_start(sim: SimulatorViews, buf: AltitudeBuffers, c: AltitudeConstants,
                    observation: wp.array2d(dtype=wp.float32), mask: wp.array(dtype=wp.bool), i: int):
@@ -266,15 +255,10 @@ def altitude_start(sim: SimulatorViews, buf: AltitudeBuffers, c: AltitudeConstan
     write_observation(f, c, e_h, buf.elevator_rate[i], buf.error_integral[i], ref[1], observation, i)
 
 
-@wp.kernel
-def altitude_start_kernel(sim: SimulatorViews, buf: AltitudeBuffers, c: AltitudeConstants,
-                          observation: wp.array2d(dtype=wp.float32), mask: wp.array(dtype=wp.bool),
-                          offset: int):
-    """:func:`altitude_start` of env i = offset + tid."""
-    i = wp.tid() + offset
-    saved = flush_denormals_begin()
-    altitude_start(sim, buf, c, observation, mask, i)
-    flush_denormals_end(saved)
+#: The step kernel (:func:`altitude_step` of env i = offset + tid) and the start kernel
+#: (:func:`altitude_start`), in this module.
+altitude_step_kernel, altitude_start_kernel = task_kernels(
+    "altitude", altitude_step, altitude_start, AltitudeBuffers, AltitudeConstants, __name__)
 
 
 def altitude_constants(task: Task) -> Any:

@@ -23,7 +23,6 @@ import warp as wp
 
 from ...constants import DEG
 from ...physics._warp import forward_only
-from ...physics.warp_kernels import flush_denormals_begin, flush_denormals_end
 from .warp_common import (
     FlightState,
     FusedStep,
@@ -36,6 +35,7 @@ from .warp_common import (
     gaussian_wp,
     termination_code,
 )
+from .warp_task_kernels import task_kernels
 
 forward_only(__name__)
 
@@ -174,17 +174,6 @@ def attitude_step(sim: SimulatorViews, buf: AttitudeBuffers, c: AttitudeConstant
     write_observation(f, c, errors, action, observation, i)
 
 
-@wp.kernel
-def attitude_step_kernel(sim: SimulatorViews, buf: AttitudeBuffers, c: AttitudeConstants,
-                         observation: wp.array2d(dtype=wp.float32), reward: wp.array(dtype=wp.float32),
-                         reason: wp.array(dtype=wp.int64), offset: int):
-    """:func:`attitude_step` of env i = offset + tid (``offset``: first env of this CPU slice)."""
-    i = wp.tid() + offset
-    saved = flush_denormals_begin()
-    attitude_step(sim, buf, c, observation, reward, reason, i)
-    flush_denormals_end(saved)
-
-
 @wp.func
 def attitude_start(sim: SimulatorViews, buf: AttitudeBuffers, c: AttitudeConstants,
                    observation: wp.array2d(dtype=wp.float32), mask: wp.array(dtype=wp.bool), i: int):
@@ -205,15 +194,10 @@ def attitude_start(sim: SimulatorViews, buf: AttitudeBuffers, c: AttitudeConstan
     write_observation(f, c, errors, buf.previous_action[i], observation, i)
 
 
-@wp.kernel
-def attitude_start_kernel(sim: SimulatorViews, buf: AttitudeBuffers, c: AttitudeConstants,
-                          observation: wp.array2d(dtype=wp.float32), mask: wp.array(dtype=wp.bool),
-                          offset: int):
-    """:func:`attitude_start` of env i = offset + tid."""
-    i = wp.tid() + offset
-    saved = flush_denormals_begin()
-    attitude_start(sim, buf, c, observation, mask, i)
-    flush_denormals_end(saved)
+#: The step kernel (:func:`attitude_step` of env i = offset + tid) and the start kernel
+#: (:func:`attitude_start`), in this module.
+attitude_step_kernel, attitude_start_kernel = task_kernels(
+    "attitude", attitude_step, attitude_start, AttitudeBuffers, AttitudeConstants, __name__)
 
 
 def attitude_constants(task: Task) -> Any:

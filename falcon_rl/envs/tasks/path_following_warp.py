@@ -20,7 +20,6 @@ import warp as wp
 
 from ...constants import DEG
 from ...physics._warp import forward_only
-from ...physics.warp_kernels import flush_denormals_begin, flush_denormals_end
 from .warp_common import (
     FlightState,
     FusedStep,
@@ -33,6 +32,7 @@ from .warp_common import (
     termination_code,
     wrap_angle_wp,
 )
+from .warp_task_kernels import task_kernels
 
 forward_only(__name__)
 
@@ -141,17 +141,6 @@ def path_following_step(sim: SimulatorViews, buf: PathFollowingBuffers, c: PathF
     write_observation(f, c, errors, action, observation, i)
 
 
-@wp.kernel
-def path_following_step_kernel(sim: SimulatorViews, buf: PathFollowingBuffers, c: PathFollowingConstants,
-                               observation: wp.array2d(dtype=wp.float32), reward: wp.array(dtype=wp.float32),
-                               reason: wp.array(dtype=wp.int64), offset: int):
-    """:func:`path_following_step` of env i = offset + tid (``offset``: first env of this CPU slice)."""
-    i = wp.tid() + offset
-    saved = flush_denormals_begin()
-    path_following_step(sim, buf, c, observation, reward, reason, i)
-    flush_denormals_end(saved)
-
-
 @wp.func
 def path_following_start(sim: SimulatorViews, buf: PathFollowingBuffers, c: PathFollowingConstants,
                          observation: wp.array2d(dtype=wp.float32), mask: wp.array(dtype=wp.bool), i: int):
@@ -165,15 +154,11 @@ def path_following_start(sim: SimulatorViews, buf: PathFollowingBuffers, c: Path
     write_observation(f, c, path_errors(f, buf, c, i), buf.previous_action[i], observation, i)
 
 
-@wp.kernel
-def path_following_start_kernel(sim: SimulatorViews, buf: PathFollowingBuffers, c: PathFollowingConstants,
-                                observation: wp.array2d(dtype=wp.float32), mask: wp.array(dtype=wp.bool),
-                                offset: int):
-    """:func:`path_following_start` of env i = offset + tid."""
-    i = wp.tid() + offset
-    saved = flush_denormals_begin()
-    path_following_start(sim, buf, c, observation, mask, i)
-    flush_denormals_end(saved)
+#: The step kernel (:func:`path_following_step` of env i = offset + tid) and the start kernel
+#: (:func:`path_following_start`), in this module.
+path_following_step_kernel, path_following_start_kernel = task_kernels(
+    "path_following", path_following_step, path_following_start, PathFollowingBuffers,
+    PathFollowingConstants, __name__)
 
 
 class FusedPathFollowingStep(FusedStep):

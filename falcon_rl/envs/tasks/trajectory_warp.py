@@ -20,7 +20,6 @@ import warp as wp
 
 from ...constants import DEG
 from ...physics._warp import forward_only
-from ...physics.warp_kernels import flush_denormals_begin, flush_denormals_end
 from .warp_common import (
     FlightState,
     FusedStep,
@@ -32,6 +31,7 @@ from .warp_common import (
     gaussian_wp,
     termination_code,
 )
+from .warp_task_kernels import task_kernels
 
 forward_only(__name__)
 
@@ -157,17 +157,6 @@ def trajectory_step(sim: SimulatorViews, buf: TrajectoryBuffers, c: TrajectoryCo
     write_observation(f, c, position_error, velocity_error, action, observation, i)
 
 
-@wp.kernel
-def trajectory_step_kernel(sim: SimulatorViews, buf: TrajectoryBuffers, c: TrajectoryConstants,
-                           observation: wp.array2d(dtype=wp.float32), reward: wp.array(dtype=wp.float32),
-                           reason: wp.array(dtype=wp.int64), offset: int):
-    """:func:`trajectory_step` of env i = offset + tid (``offset``: first env of this CPU slice)."""
-    i = wp.tid() + offset
-    saved = flush_denormals_begin()
-    trajectory_step(sim, buf, c, observation, reward, reason, i)
-    flush_denormals_end(saved)
-
-
 @wp.func
 def trajectory_start(sim: SimulatorViews, buf: TrajectoryBuffers, c: TrajectoryConstants,
                      observation: wp.array2d(dtype=wp.float32), mask: wp.array(dtype=wp.bool), i: int):
@@ -184,15 +173,10 @@ def trajectory_start(sim: SimulatorViews, buf: TrajectoryBuffers, c: TrajectoryC
                       observation, i)
 
 
-@wp.kernel
-def trajectory_start_kernel(sim: SimulatorViews, buf: TrajectoryBuffers, c: TrajectoryConstants,
-                            observation: wp.array2d(dtype=wp.float32), mask: wp.array(dtype=wp.bool),
-                            offset: int):
-    """:func:`trajectory_start` of env i = offset + tid."""
-    i = wp.tid() + offset
-    saved = flush_denormals_begin()
-    trajectory_start(sim, buf, c, observation, mask, i)
-    flush_denormals_end(saved)
+#: The step kernel (:func:`trajectory_step` of env i = offset + tid) and the start kernel
+#: (:func:`trajectory_start`), in this module.
+trajectory_step_kernel, trajectory_start_kernel = task_kernels(
+    "trajectory", trajectory_step, trajectory_start, TrajectoryBuffers, TrajectoryConstants, __name__)
 
 
 class FusedTrajectoryStep(FusedStep):
