@@ -19,6 +19,7 @@ TOL = {"rtol": 1e-5, "atol": 1e-5}
 CASES = [
     ("altitude", "volantex_ranger", {}),
     ("altitude", "navion", {"initial_airspeed_spread": 0.1, "turbulence": None}),
+    ("altitude", "volantex_ranger", {"warp_cpu_threads": 2}),  # the start launched per CPU slice
     ("climb_descend", "volantex_ranger", {}),
     ("attitude", "volantex_ranger", {}),
     ("attitude", "navion", {"maneuver": "s_turn"}),
@@ -59,6 +60,8 @@ def run_with_partial_resets(env, steps: int, with_state: bool) -> list[torch.Ten
 def assert_same_start(task: str, airframe: str, device: str = "cpu", **options) -> None:
     envs = {fused: task_env(task, airframe, fused, device, **options) for fused in (False, True)}
     assert envs[True].task.fused_starter() is not None and not envs[False].config.fused
+    if "warp_cpu_threads" in options:
+        assert len(envs[True].sim.engine.slices) > 1
     runs = {fused: run_with_partial_resets(env, 40, with_state=not fused) for fused, env in envs.items()}
     for k, (expected, actual) in enumerate(zip(runs[False], runs[True], strict=True)):
         torch.testing.assert_close(actual, expected, **TOL, msg=lambda m, k=k: f"output {k}: {m}")
