@@ -88,18 +88,26 @@ def _rollout(env: FixedWingEnv, policy: TensorDictModuleBase, steps: int, label:
              ) -> tuple[TensorDictBase, float]:
     """Roll ``steps`` env steps with a progress bar (on a terminal; none in a log file); returns
     (rollout [N, T] of every step's "action" and "next" entries, what metrics and traces read: the
-    observation and state a step starts from are the previous step's "next"; s per policy call)."""
+    observation and state a step starts from are the previous step's "next"; s per policy call). Each
+    step's entries are copied into storage allocated at the first step (a quarter of a 16-env
+    protocol's time went to cloning each step and stacking at the end)."""
     td = env.reset()
-    frames, policy_seconds = [], 0.0
+    stored: TensorDictBase | None = None  # [T, N]: each step's entries copied into it
+    policy_seconds = 0.0
     with torch.no_grad():
-        for _ in tqdm(range(steps), desc=label, unit="step", leave=False, mininterval=1.0, disable=None):
+        for t in tqdm(range(steps), desc=label, unit="step", leave=False, mininterval=1.0, disable=None):
             t0 = time.perf_counter()
             td = policy(td)
             policy_seconds += time.perf_counter() - t0
             td = env.step(td)
-            frames.append(td.select("action", "next").clone())
+            frame = td.select("action", "next")
+            if stored is None:  # shaped by the first step's entries, allocated once
+                stored = frame.unsqueeze(0).expand(steps, *frame.batch_size).clone()
+            stored[t] = frame  # a copy: an env or transform may hand out the same tensor each step
             td = env.step_mdp(td)
-    rollout = torch.stack(frames, dim=1)
+    if stored is None:
+        raise ValueError(f"a protocol rollout needs at least one step, got {steps}")
+    rollout = stored.transpose(0, 1).contiguous()
     rollout.set("next", flat_scalars(rollout["next"]))  # [N, T] series for the metrics and figures
     return rollout, policy_seconds / max(steps, 1)
 
