@@ -1,6 +1,7 @@
 """The protocols' rollout (``protocols._rollout``: each step's "action" and "next" entries copied into
-storage allocated at the first step) records what TorchRL's own rollout records, on the plain env
-and behind delay lines and sensors (transforms that keep buffers across steps)."""
+storage allocated at the first step, ``step_record.StepRecord``) records what TorchRL's own rollout
+records, on the plain env and behind delay lines and sensors, and copies each step (a transform that
+hands out the same tensor every step)."""
 
 from __future__ import annotations
 
@@ -70,5 +71,5 @@ def test_protocol_rollout_copies_each_step():
 
 def test_protocol_rollout_needs_a_step():
     env = make_env("altitude", "volantex_ranger", num_envs=2, seed=0)
-    with pytest.raises(ValueError, match="at least one step"):
+    with pytest.raises(ValueError, match="needs at least one step"):
         _rollout(env, HeldActions(env.action_spec.shape, 0), 0, "test")

@@ -40,6 +40,7 @@ from ..envs.layout import flat_scalars
 from ..envs.maneuvers import MANEUVERS
 from ..envs.tasks import ClimbDescendConfig
 from .metrics import altitude_metrics, attitude_metrics, summarize
+from .step_record import StepRecord
 from .tracking_metrics import climb_descend_metrics, path_following_metrics, trajectory_metrics
 
 ControllerFactory = Callable[[FixedWingEnv], TensorDictModuleBase]
@@ -88,11 +89,9 @@ def _rollout(env: FixedWingEnv, policy: TensorDictModuleBase, steps: int, label:
              ) -> tuple[TensorDictBase, float]:
     """Roll ``steps`` env steps with a progress bar (on a terminal; none in a log file); returns
     (rollout [N, T] of every step's "action" and "next" entries, what metrics and traces read: the
-    observation and state a step starts from are the previous step's "next"; s per policy call). Each
-    step's entries are copied into storage allocated at the first step (a quarter of a 16-env
-    protocol's time went to cloning each step and stacking at the end)."""
+    observation and state a step starts from are the previous step's "next"; s per policy call)."""
+    record = StepRecord(steps)
     td = env.reset()
-    stored: TensorDictBase | None = None  # [T, N]: each step's entries copied into it
     policy_seconds = 0.0
     with torch.no_grad():
         for t in tqdm(range(steps), desc=label, unit="step", leave=False, mininterval=1.0, disable=None):
@@ -100,14 +99,9 @@ def _rollout(env: FixedWingEnv, policy: TensorDictModuleBase, steps: int, label:
             td = policy(td)
             policy_seconds += time.perf_counter() - t0
             td = env.step(td)
-            frame = td.select("action", "next")
-            if stored is None:  # shaped by the first step's entries, allocated once
-                stored = frame.unsqueeze(0).expand(steps, *frame.batch_size).clone()
-            stored[t] = frame  # a copy: an env or transform may hand out the same tensor each step
+            record.record(t, td.select("action", "next"))
             td = env.step_mdp(td)
-    if stored is None:
-        raise ValueError(f"a protocol rollout needs at least one step, got {steps}")
-    rollout = stored.transpose(0, 1).contiguous()
+    rollout = record.rollout()
     rollout.set("next", flat_scalars(rollout["next"]))  # [N, T] series for the metrics and figures
     return rollout, policy_seconds / max(steps, 1)
 

@@ -53,6 +53,7 @@ from ..transforms.presets import (
 from .controllers import reused_controller
 from .metrics import first_episode_mask, survival
 from .protocols import PROTOCOL_DECIMATION
+from .step_record import StepRecord
 
 ControllerFactory = Callable[[FixedWingEnv], TensorDictModuleBase]
 
@@ -227,15 +228,16 @@ def score_rollouts(rollouts: Sequence[TensorDictBase]) -> dict[str, float | int]
 
 
 def _fly(env: FixedWingEnv, policy: TensorDictModuleBase, steps: int) -> TensorDictBase:
-    """Roll ``steps`` env steps without resets: the rollout [N, T]."""
+    """Roll ``steps`` env steps without resets: the rollout [N, T] of each step's "next" entries (what
+    :func:`score_rollouts` reads)."""
+    record = StepRecord(steps)
     td = env.reset()
-    frames = []
     with torch.no_grad():
-        for _ in range(steps):
+        for t in range(steps):
             td = env.step(policy(td))
-            frames.append(td.clone())
+            record.record(t, td.select("next"))
             td = env.step_mdp(td)
-    return torch.stack(frames, dim=1)
+    return record.rollout()
 
 
 def run_cell(airframe: str, factory: ControllerFactory, family: str, level: str,
@@ -245,7 +247,7 @@ def run_cell(airframe: str, factory: ControllerFactory, family: str, level: str,
     """Fly one (family, level) cell: ``episodes`` envs on each stream of ``maneuvers`` (the whole
     stream, or its first ``seconds`` s; "random": ``seconds`` s, default ``RANDOM_STREAM_SECONDS``),
     at the 10 ms control step with ``seed``. Returns the cell and, with ``keep_rollouts``, the
-    rollouts [episodes, T] of each stream (else an empty list)."""
+    rollouts [episodes, T] of each stream (their "next" entries; else an empty list)."""
     options = disturbance_options(family, level)
     rollouts = []
     for stream in maneuvers:
