@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
 # Issue 17's GPU targets in one pass, on one CUDA GPU, in about nine minutes once the kernels are cached:
-#   1. the CUDA tests (env rollouts, one-launch step = staged step, fused tasks, turbulence and
-#      trajectory parity on the GPU; the torch.compile test is left to cuda_check.sh);
+#   1. the CUDA tests (env rollouts, one-launch step = staged step, fused tasks and their start of
+#      episodes, turbulence and trajectory parity on the GPU; the torch.compile test is left to
+#      cuda_check.sh);
 #   2. benchmarks/env_step.py on the GPU at 16,384 and 1,048,576 envs: the physics alone, the one-launch
-#      step without TorchRL, the lean TorchRL env and the trivial-EnvBase floor, timed in the same rounds;
+#      step without TorchRL, the lean TorchRL env, a one-row partial reset and the trivial-EnvBase floor,
+#      timed in the same rounds;
 #   3. PPO altitude on the Volantex Ranger on the GPU, from scratch, with each recipe of $PPO_RECIPES
 #      (NAME=FIELD=VALUE,FIELD=VALUE ... ; default: two candidates, below), stopping at the first
 #      validation with RMSE <= 0.3 m: the whole command timed, its log and summary (with the loop's
@@ -28,14 +30,16 @@ echo "warp module compiled and cached: $(( $(date +%s) - start )) s" | tee -a "$
 
 start=$(date +%s)
 timeout "${TESTS_S:-150}" $py -m pytest -q -p no:cacheprovider -rs tests/test_cuda.py tests/test_env_step_kernel.py \
-    tests/test_fused_task.py tests/test_turbulence.py tests/test_warp_parity.py -k "cuda and not compiled" \
+    tests/test_fused_task.py tests/test_fused_start.py tests/test_turbulence.py tests/test_warp_parity.py \
+    -k "cuda and not compiled" \
     2>&1 | tail -8 | tee "$out/tests.txt"
 echo "tests: $(( $(date +%s) - start )) s" | tee -a "$out/tests.txt"
 snapshot
 
 start=$(date +%s)
 timeout "${BENCH_S:-110}" $py benchmarks/env_step.py --device cuda --envs 16384,1048576 --trials 5 --block-s 0.5 \
-    --cases "physics,fused step,fused step (CUDA graph),env lean,torchrl floor (new outputs)" --no-progress --out "$out/env_step" \
+    --cases "physics,fused step,fused step (CUDA graph),env lean,partial reset,torchrl floor (new outputs)" \
+    --no-progress --out "$out/env_step" \
     2>&1 | tee "$out/env_step.txt"
 echo "env_step: $(( $(date +%s) - start )) s" | tee -a "$out/env_step.txt"
 snapshot

@@ -77,8 +77,9 @@ def test_fused_start_matches_the_torch_start(task, airframe, options):
     assert_same_start(task, airframe, **options)
 
 
+@pytest.mark.gpu
 @pytest.mark.skipif(not warp_cuda_available(), reason="needs CUDA")
-@pytest.mark.parametrize(("task", "airframe", "options"), CASES[::3])
+@pytest.mark.parametrize(("task", "airframe", "options"), CASES[:1])  # the kernels compiled ahead (altitude)
 def test_fused_start_matches_the_torch_start_on_cuda(task, airframe, options):
     assert_same_start(task, airframe, "cuda", **options)
 
