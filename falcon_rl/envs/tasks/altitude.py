@@ -271,11 +271,6 @@ class AltitudeTask(Task):
 
         return fused_stepper(self, AltitudeTask, _FUSED_METHODS, FusedAltitudeStep)
 
-    def fused_starter(self) -> FusedStep | None:
-        """The fused step, whose start kernel twins :meth:`after_reset` and :meth:`observe`
-        (``altitude_warp.altitude_start``), unless a subclass overrides one of them."""
-        return None if self.overrides(AltitudeTask, _FUSED_START_METHODS) else self.fused_stepper()
-
     def info(self) -> dict[str, torch.Tensor]:
         return {key: value.clone() for key, value in self.info_views().items()}
 
@@ -293,8 +288,6 @@ class AltitudeTask(Task):
 #: The methods :meth:`AltitudeTask.fused_step` fuses: a subclass that overrides one falls back to ``step``.
 _FUSED_METHODS: tuple[str, ...] = ("step", "advance", "update", "reward", "observe", "termination_checks",
                                    "termination_reason", "_update_reference", "_release_next_targets")
-#: The methods :meth:`AltitudeTask.fused_starter`'s launch twins besides those of the step.
-_FUSED_START_METHODS: tuple[str, ...] = ("after_reset", "_update_reference")
 
 #: The env this task is built with by default and every recipe trains on: control at 20 Hz
 #: (decimation 5 of the 10 ms physics step), so that gamma 0.99 looks ~5 s ahead; a survival bonus

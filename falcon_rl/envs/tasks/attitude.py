@@ -186,11 +186,6 @@ class AttitudeTask(Task):
 
         return fused_stepper(self, AttitudeTask, _FUSED_METHODS, FusedAttitudeStep)
 
-    def fused_starter(self) -> FusedStep | None:
-        """The fused step, whose start kernel twins :meth:`after_reset` and :meth:`observe`
-        (``attitude_warp.attitude_start``), unless a subclass overrides one of them."""
-        return None if self.overrides(AttitudeTask, _FUSED_START_METHODS) else self.fused_stepper()
-
     def info(self) -> dict[str, torch.Tensor]:
         return {key: value.clone() for key, value in self.info_views().items()}
 
@@ -208,8 +203,6 @@ class AttitudeTask(Task):
 #: The methods :meth:`AttitudeTask.fused_step` fuses: a subclass that overrides one falls back to ``step``.
 _FUSED_METHODS: tuple[str, ...] = ("step", "advance", "update", "reward", "observe", "termination_checks",
                                    "termination_reason", "_current_command", "_update_errors")
-#: The methods :meth:`AttitudeTask.fused_starter`'s launch twins besides those of the step.
-_FUSED_START_METHODS: tuple[str, ...] = ("after_reset",)
 
 #: Training defaults (on top of each recipe's own): the env's defaults (20 Hz control), the task's own reward;
 #: PPO's training return plateaus after ~3 M of the 8 M frames. The protocol flies ``episodes`` per

@@ -29,7 +29,7 @@ from __future__ import annotations
 import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, fields
-from typing import ClassVar, Protocol
+from typing import Any, ClassVar, Protocol
 
 import torch
 from tensordict import TensorDictBase
@@ -133,7 +133,12 @@ def _is_number(value: object) -> bool:
 
 class FusedTaskStep(Protocol):
     """A task's backend-fused step (e.g. ``warp_common.FusedStep``): called with the checked action
-    [N, A] right after the physics, it returns (observation [N, D], reward [N], reason [N] long)."""
+    [N, A] right after the physics, it returns (observation [N, D], reward [N], reason [N] long).
+    ``owner`` is the task class whose methods it twins; ``start_kernel`` (None: none) makes
+    :meth:`start` available."""
+
+    owner: type
+    start_kernel: Any
 
     def __call__(self, action: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]: ...
 
@@ -245,9 +250,14 @@ class Task(ABC):
         return self.observe(state)
 
     def fused_starter(self) -> FusedTaskStep | None:
-        """The fused step whose start kernel twins :meth:`after_reset` and :meth:`observe`
-        (``warp_common.FusedStep.start``), or None (the default: the task starts episodes in torch)."""
-        return None
+        """The fused step (:meth:`fused_stepper`) when it has a start kernel, the twin of
+        :meth:`after_reset` and :meth:`observe` of the class it twins (``FusedTaskStep.owner``), and this
+        task's class does not override ``after_reset`` (``observe`` and the methods ``after_reset`` calls
+        are the step's, checked by :meth:`fused_stepper`); else None: the task starts episodes in torch."""
+        stepper = self.fused_stepper()
+        if stepper is None or stepper.start_kernel is None or self.overrides(stepper.owner, ("after_reset",)):
+            return None
+        return stepper
 
     def command(self, action: torch.Tensor) -> torch.Tensor:
         """[N, A] action in [-1, 1] -> [N, 4] simulator command (trim in undriven channels)."""

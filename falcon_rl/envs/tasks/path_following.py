@@ -156,11 +156,6 @@ class PathFollowingTask(Task):
 
         return fused_stepper(self, PathFollowingTask, _FUSED_METHODS, FusedPathFollowingStep)
 
-    def fused_starter(self) -> FusedStep | None:
-        """The fused step, whose start kernel twins :meth:`after_reset` and :meth:`observe`
-        (``path_following_warp.path_following_start``), unless a subclass overrides one of them."""
-        return None if self.overrides(PathFollowingTask, _FUSED_START_METHODS) else self.fused_stepper()
-
     def info(self) -> dict[str, torch.Tensor]:
         return {"cross_track_error": self.errors[:, 0].clone(), "course_error": self.errors[:, 1].clone(),
                 "altitude_error": self.errors[:, 2].clone(), "path_point": self.path_point.clone(),
@@ -172,8 +167,6 @@ class PathFollowingTask(Task):
 #: ``step``.
 _FUSED_METHODS: tuple[str, ...] = ("step", "advance", "update", "reward", "observe", "termination_checks",
                                    "termination_reason")
-#: The methods :meth:`PathFollowingTask.fused_starter`'s launch twins besides those of the step.
-_FUSED_START_METHODS: tuple[str, ...] = ("after_reset",)
 
 SPEC = register_task(TaskSpec(
     name="path_following", task=PathFollowingTask, config=PathFollowingConfig,

@@ -183,11 +183,6 @@ class TrajectoryTask(Task):
 
         return fused_stepper(self, TrajectoryTask, _FUSED_METHODS, FusedTrajectoryStep)
 
-    def fused_starter(self) -> FusedStep | None:
-        """The fused step, whose start kernel twins :meth:`after_reset` and :meth:`observe`
-        (``trajectory_warp.trajectory_start``), unless a subclass overrides one of them."""
-        return None if self.overrides(TrajectoryTask, _FUSED_START_METHODS) else self.fused_stepper()
-
     def info(self) -> dict[str, torch.Tensor]:
         return {"position_error": torch.linalg.vector_norm(self.position_error, dim=-1),
                 "position_error_ned": self.position_error_ned.clone(),
@@ -198,8 +193,6 @@ class TrajectoryTask(Task):
 #: The methods :meth:`TrajectoryTask.fused_step` fuses: a subclass that overrides one falls back to ``step``.
 _FUSED_METHODS: tuple[str, ...] = ("step", "advance", "advance_reference", "update", "reward", "observe",
                                    "termination_checks", "termination_reason")
-#: The methods :meth:`TrajectoryTask.fused_starter`'s launch twins besides those of the step.
-_FUSED_START_METHODS: tuple[str, ...] = ("after_reset",)
 
 SPEC = register_task(TaskSpec(
     name="trajectory", task=TrajectoryTask, config=TrajectoryConfig, gym_id="falcon_rl/Trajectory-v0",

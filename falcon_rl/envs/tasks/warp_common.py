@@ -280,6 +280,8 @@ class FusedStep:
         #: buffer of its own: a caller may still read the step's after a reset).
         self.start_mask = torch.zeros(n, device=device, dtype=torch.bool)
         self.start_observation = torch.zeros_like(self.observation)
+        #: The task class whose methods the kernels twin (:func:`fused_stepper` sets it to its ``owner``).
+        self.owner: type = type(task)
         self._launches: list[Any] = []
         self._replay: Callable[[], None] = lambda: None
         self._start_replay: Callable[[], None] = lambda: None
@@ -361,10 +363,12 @@ def fused_stepper(task: Task, owner: type, methods: tuple[str, ...], factory: ty
                   ) -> FusedStep | None:
     """The shared body of a task's ``fused_stepper``: None when a subclass of ``owner`` overrides one of
     the fused ``methods`` (it then falls back to ``step``), else the task's ``factory`` step, built on
-    the first call and kept in ``task._fused``."""
+    the first call and kept in ``task._fused`` (its ``owner`` set: ``Task.fused_starter`` checks
+    ``after_reset`` against it)."""
     if task.overrides(owner, methods):
         return None
     fused = getattr(task, "_fused", None)
     if fused is None:
         fused = task.__dict__["_fused"] = factory(task)
+        fused.owner = owner
     return fused
