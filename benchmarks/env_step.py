@@ -133,30 +133,22 @@ class TrivialEnv(EnvBase):
 
 def fused_stepper(env: Any, graph: bool = False) -> Callable[[], None]:
     """A call that runs ``env``'s one-launch step with a zero action (no TorchRL, no reset, no copy),
-    with ``graph`` as a replay of the step captured in a CUDA graph; raises when the env has none (not
-    the warp backend, or a task without a fused step) or, with ``graph``, is not on CUDA."""
-    if env.env_stepper() is None:
+    with ``graph`` as a replay of the step captured in a CUDA graph (``FusedEnvStep.cuda_graph``);
+    raises when the env has none (not the warp backend, or a task without a fused step) or, with
+    ``graph``, is not on CUDA."""
+    stepper = env.env_stepper()
+    if stepper is None:
         raise ValueError("no one-launch env step (needs the warp backend and a task with a fused step)")
-    if graph and env.device.type != "cuda":
-        raise ValueError("a CUDA graph needs a CUDA device")
     env.reset()
     action = env.action_spec.zero()
+    if graph:
+        stepper.raw_action.copy_(action)
+        return stepper.cuda_graph()
 
     def step() -> None:
         env.step_tensors(action, with_state=False, copy=False)
 
-    if not graph:
-        return step
-    side = torch.cuda.Stream(env.device)
-    side.wait_stream(torch.cuda.current_stream(env.device))
-    with torch.cuda.stream(side):  # warm-up on a side stream, as capture wants
-        for _ in range(3):
-            step()
-    torch.cuda.current_stream(env.device).wait_stream(side)
-    captured = torch.cuda.CUDAGraph()
-    with torch.cuda.graph(captured):
-        step()
-    return captured.replay
+    return step
 
 
 def partial_resetter(env: Any) -> Callable[[], None]:

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Issue 17's GPU targets in one pass, on one CUDA GPU, in about nine minutes once the kernels are cached:
-#   1. the CUDA tests (env rollouts, one-launch step = staged step, fused tasks and their start of
-#      episodes, turbulence and trajectory parity on the GPU; the torch.compile test is left to
-#      cuda_check.sh);
+#   1. the CUDA tests (env rollouts, one-launch step = staged step, its CUDA graph = its launch, fused
+#      tasks and their start of episodes, turbulence and trajectory parity on the GPU; the torch.compile
+#      test is left to cuda_check.sh);
 #   2. benchmarks/env_step.py on the GPU at 16,384 and 1,048,576 envs: the physics alone, the one-launch
 #      step without TorchRL, the lean TorchRL env, a one-row partial reset and the trivial-EnvBase floor,
 #      timed in the same rounds;

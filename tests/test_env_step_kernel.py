@@ -271,3 +271,62 @@ def test_one_launch_step_equals_the_staged_step_on_cuda(task: str) -> None:
             else:
                 assert torch.equal(a, b), (step, name)
         torch.testing.assert_close(one.sim.x, two.sim.x, rtol=1e-4, atol=1e-4)
+
+
+def _generator_states(task: object) -> dict[int, torch.Tensor]:
+    """id -> state of every torch generator the task holds (its own and its command stream's)."""
+    generators = [task.generator]
+    stream = getattr(task, "random_stream", None)
+    if stream is not None:
+        generators.append(stream.generator)
+    return {id(g): g.get_state() for g in generators}
+
+
+@pytest.mark.parametrize(("task", "options"), [
+    ("altitude", {}), ("altitude", {"target_sequence": True}), ("attitude", {}),
+    ("attitude", {"maneuver": "s_turn"}), ("path_following", {}), ("trajectory", {})])
+def test_a_fused_step_names_every_generator_its_draws_use(task: str, options: dict) -> None:
+    """A CUDA graph of the step registers ``generators()``; a draw from any other would replay the
+    numbers of the capture."""
+    env = make_env(task, "volantex_ranger", num_envs=4, backend="warp", seed=3, lean=True, **options)
+    env.reset()
+    step = env.env_stepper().task_step
+    before = _generator_states(env.task)
+    step.draw()
+    moved = {key for key, state in _generator_states(env.task).items() if not torch.equal(state, before[key])}
+    assert moved == {id(g) for g in step.generators()}
+
+
+def test_a_cuda_graph_of_the_step_needs_cuda() -> None:
+    env = make_env("altitude", "volantex_ranger", num_envs=2, backend="warp", seed=0, lean=True)
+    with pytest.raises(ValueError, match="needs a CUDA device"):
+        env.env_stepper().cuda_graph()
+
+
+@pytest.mark.gpu
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs CUDA")
+def test_the_cuda_graph_of_the_step_replays_what_the_launch_does() -> None:
+    """Altitude (whose CUDA kernels are the ones built ahead) with turbulence (the device-side noise
+    counter) and a target sequence (draws from a generator registered with the graph)."""
+    options = {"turbulence": "moderate", "target_sequence": True, "capture_band": 1000.0, "hold_seconds": 0.3}
+    envs = [make_env("altitude", "volantex_ranger", num_envs=512, backend="warp", device="cuda", seed=5,
+                     lean=True, **options) for _ in range(2)]
+    for env in envs:
+        env.reset()
+    graphed, launched = (env.env_stepper() for env in envs)
+    replay = graphed.cuda_graph()
+    assert torch.equal(envs[0].sim.x, envs[1].sim.x)  # capturing ran nothing
+    generator = torch.Generator().manual_seed(2)
+    for step in range(25):
+        action = (torch.rand(512, envs[0].task.action_dim, generator=generator) * 2 - 1).cuda()
+        graphed.raw_action.copy_(action)
+        launched.raw_action.copy_(action)
+        replay()
+        launched.launch()
+        for name in ("observation", "reward", "reason"):
+            one, two = getattr(graphed.task_step, name), getattr(launched.task_step, name)
+            assert torch.equal(one, two), (step, name)
+        assert torch.equal(graphed.flags, launched.flags) and torch.equal(envs[0].sim.x, envs[1].sim.x), step
+    envs[0].max_episode_steps += 1  # the step binds again: the graph is stale
+    with pytest.raises(RuntimeError, match="capture a new one"):
+        replay()

@@ -378,10 +378,19 @@ class WarpEngine(Engine):
         for future in pending:
             future.result()
 
+    def follow_torch_stream(self) -> None:
+        """Queue the next CUDA launches on torch's current stream (each launch checks this itself; a
+        caller about to capture a CUDA graph on a stream calls it there first, so that the capture
+        registers no new Warp stream). No-op on the CPU."""
+        if not self._is_cuda:
+            return
+        current = torch.cuda.current_stream(self._torch_device).cuda_stream
+        if self._stream is None or current != self._stream.cuda_stream:
+            self._stream = self._wp.stream_from_torch(self._torch_device)
+
     def _replay(self, launch: Any) -> None:
         if self._is_cuda:
-            if torch.cuda.current_stream(self._torch_device).cuda_stream != self._stream.cuda_stream:
-                self._stream = self._wp.stream_from_torch(self._torch_device)
+            self.follow_torch_stream()
             launch.launch(stream=self._stream)
         else:
             launch.launch()

@@ -313,3 +313,6 @@ class FusedAltitudeStep(FusedStep):
         if task.config.target_sequence:
             torch.randint(1, self.shift_high, (task.num_envs,), generator=task.generator, device=task.device,
                           out=self.shift)
+
+    def generators(self) -> tuple[torch.Generator, ...]:
+        return (self.task.generator,) if self.task.config.target_sequence else ()

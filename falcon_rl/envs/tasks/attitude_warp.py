@@ -267,3 +267,7 @@ class FusedAttitudeStep(FusedStep):
         if stream is not None:
             torch.rand(self.draws.shape, generator=stream.generator, device=self.draws.device,
                        dtype=self.draws.dtype, out=self.draws)
+
+    def generators(self) -> tuple[torch.Generator, ...]:
+        stream = self.task.random_stream
+        return (stream.generator,) if stream is not None else ()

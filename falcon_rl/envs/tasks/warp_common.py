@@ -339,6 +339,11 @@ class FusedStep:
     def draw(self) -> None:
         """Draw the step's random numbers into bound buffers (none by default)."""
 
+    def generators(self) -> tuple[torch.Generator, ...]:
+        """The torch generators :meth:`draw` draws from (none by default): a CUDA graph of the step
+        registers them, so that each replay draws fresh numbers."""
+        return ()
+
     def start(self, mask: torch.Tensor) -> torch.Tensor:
         """Start the episodes of the rows in ``mask`` [N] bool, whose physics reset is written, with
         :attr:`start_kernel`; returns every env's observation [N, D] (:attr:`start_observation`, which

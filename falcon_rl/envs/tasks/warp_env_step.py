@@ -23,7 +23,8 @@ CUDA compile of one takes minutes (NVRTC, sm_90: 301 s for altitude's on a 2-cor
 :class:`FusedEnvStep` binds the views (the engine's buffers, the task's, the env's counters), records
 the launches and replays them; per step it copies the action into its buffer (a cast for other float
 dtypes), draws the task's random numbers, bumps the turbulence stream counter when on, and launches:
-nothing else runs in Python or torch.
+nothing else runs in Python or torch. On CUDA, :meth:`FusedEnvStep.cuda_graph` captures those (draws,
+counter, launch) in a CUDA graph for loops that replay it.
 
 No ``from __future__ import annotations`` here: Warp reads the kernel factory's annotations, which name
 the task's struct types through the closure.
@@ -245,6 +246,39 @@ class FusedEnvStep:
         self.task_step.draw()
         self.env.sim.engine.bump_turbulence_counter(self.env.config.decimation)
         self._replay()
+
+    def cuda_graph(self) -> Callable[[], None]:
+        """This step captured in a CUDA graph, as a call that replays it (CUDA only; ValueError elsewhere):
+        one env step of the action in :attr:`raw_action`, with the task's draws (their generators
+        registered with the graph, so each replay draws fresh numbers), the turbulence counter and the
+        launch, and no host work but the replay. The outputs land in the buffers :meth:`launch` writes.
+        Capturing runs nothing. A replay after the step bound again (a replaced parameter set, a new
+        horizon, decimation or crash setting) raises RuntimeError: capture again. Resets are not in the
+        graph (``FixedWingEnv.reset_tensors``, between replays)."""
+        device = self.env.device
+        if device.type != "cuda":
+            raise ValueError(f"a CUDA graph needs a CUDA device; this env is on {device}")
+        if not self._launches or self._binding_key() != self._key:
+            self.bind()
+        key, engine = self._key, self.env.sim.engine
+        graph = torch.cuda.CUDAGraph()
+        for generator in self.task_step.generators():
+            graph.register_generator_state(generator)
+        stream = torch.cuda.Stream(device)
+        stream.wait_stream(torch.cuda.current_stream(device))
+        with torch.cuda.stream(stream):
+            engine.follow_torch_stream()  # the Warp view of the capture stream, made before the capture
+        with torch.cuda.graph(graph, stream=stream):
+            self.launch()
+        torch.cuda.current_stream(device).wait_stream(stream)
+
+        def replay() -> None:
+            if self._binding_key() != key:
+                raise RuntimeError("the env's step bound again since its CUDA graph was captured: capture "
+                                   "a new one (FusedEnvStep.cuda_graph)")
+            graph.replay()
+
+        return replay
 
     def __call__(self, action: torch.Tensor) -> tuple[torch.Tensor, ...]:
         """(observation [N, D], reward [N], reason [N] long, truncated [N], non_finite [N]) of the step
