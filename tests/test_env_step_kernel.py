@@ -104,6 +104,9 @@ def test_the_lean_torchrl_step_hands_out_what_the_staged_step_does_in_new_tensor
         assert set(got.keys()) == set(want.keys())
         for key in want.keys():  # noqa: SIM118 (iterating a TensorDict gives its rows)
             assert got[key].dtype == want[key].dtype and torch.equal(got[key], want[key]), (step, key)
+        # Each output owns its memory (views of one copy cost TorchRL's step more downstream).
+        storages = {got[key].untyped_storage().data_ptr() for key in got.keys()}  # noqa: SIM118
+        assert len(storages) == len(got.keys()) and all(got[key]._base is None for key in got.keys())  # noqa: SIM118
         done = got["done"].view(N)
         if bool(done.any()):
             one.reset_tensors(done), two.reset_tensors(done)

@@ -418,12 +418,18 @@ class FixedWingEnv(EnvBase):
             "truncated": truncated,
             "done": terminated | truncated,
         }
+        batch, device = self.batch_size, self.device
         if not self.config.lean:
-            out["state"] = {key: column(state[key]) for key in STATE_KEYS}
-            out["task"] = {key: column(value) for key, value in self.task.info().items()}
+            out["state"] = TensorDict._new_unsafe({key: column(state[key]) for key in STATE_KEYS},
+                                                  batch_size=batch, device=device)
+            task = {key: column(value) for key, value in self.task.info().items()}
+            out["task"] = TensorDict._new_unsafe(task, batch_size=batch, device=device)
         if reward is not None:
             out["reward"] = reward
-        return TensorDict(out, batch_size=self.batch_size, device=self.device)
+        # Every entry is an [N, ...] tensor of the env's device by construction (the simulator's state,
+        # the task's buffers and outputs): the unchecked constructor skips TensorDict's per-entry
+        # validation, as the lean step and Simulator.state do.
+        return TensorDict._new_unsafe(out, batch_size=batch, device=device)
 
     # ------------------------------------------------------------------ flight-env interface
     @property

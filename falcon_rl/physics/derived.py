@@ -53,6 +53,7 @@ DERIVED_OFFSET: dict[str, int] = dict(zip(
     itertools.accumulate((width for _, width in DERIVED_FIELDS), initial=0), strict=False))
 #: Columns of the derived tensor.
 DERIVED_WIDTH: int = sum(width for _, width in DERIVED_FIELDS)
+_WIDTHS: list[int] = [width for _, width in DERIVED_FIELDS]
 
 
 def ground_contact(height: torch.Tensor, lowest_tip_height: torch.Tensor) -> torch.Tensor:
@@ -78,9 +79,9 @@ def split_derived(derived: torch.Tensor, copy: bool = True) -> dict[str, torch.T
     if derived.shape[-1] != DERIVED_WIDTH:
         raise ValueError(f"derived tensor has {derived.shape[-1]} columns, expected {DERIVED_WIDTH}")
     out = {}
-    for name, width in DERIVED_FIELDS:
-        start = DERIVED_OFFSET[name]
-        column = derived[:, start] if width == 1 else derived[:, start:start + width]
+    # One split for every field's columns (per-field indexing cost ~2 us each on a one-env state).
+    for (name, width), column in zip(DERIVED_FIELDS, derived.split(_WIDTHS, dim=-1), strict=True):
+        column = column.squeeze(-1) if width == 1 else column
         out[name] = column.clone() if copy else column
     out["ground_contact"] = ground_contact(out["height"], out["lowest_tip_height"])
     return out

@@ -28,9 +28,9 @@ def refuse_bad_action(action: object, num_envs: int, action_dim: int, name: str 
     if not isinstance(action, torch.Tensor):
         raise ValueError(f"{name} must be a torch.Tensor of shape [{num_envs}, {action_dim}], "
                          f"got {type(action).__name__}")
-    if action.dtype == torch.bool or action.is_complex() or not action.is_floating_point():
+    if not action.is_floating_point():  # bool, integer and complex dtypes are not floating point
         raise ValueError(f"{name} must be a real floating tensor, got dtype {action.dtype}")
-    if tuple(action.shape) != (num_envs, action_dim):
+    if action.shape != (num_envs, action_dim):
         raise ValueError(f"{name} must have shape [{num_envs}, {action_dim}], got {list(action.shape)}")
 
 
