@@ -143,6 +143,8 @@ def fused_stepper(env: Any, graph: bool = False) -> Callable[[], None]:
     action = env.action_spec.zero()
     if graph:
         stepper.raw_action.copy_(action)
+        for _ in range(3):  # load the CUDA kernels before the capture records them
+            stepper.launch()
         return stepper.cuda_graph()
 
     def step() -> None:

@@ -254,9 +254,11 @@ class FusedEnvStep:
         one env step of the action in :attr:`raw_action`, with the task's draws (their generators
         registered with the graph, so each replay draws fresh numbers), the turbulence counter and the
         launch, and no host work but the replay. The outputs land in the buffers :meth:`launch` writes.
-        Capturing runs nothing. A replay after the step bound again (a replaced parameter set, a new
-        horizon, decimation or crash setting) raises RuntimeError: capture again. Resets are not in the
-        graph (``FixedWingEnv.reset_tensors``, between replays)."""
+        Capturing runs nothing; capture after a first step (torch and Warp load their CUDA kernels at
+        their first launch, which a capture only records). A replay after the step bound again (a
+        replaced parameter set, a new horizon, decimation or crash setting) raises RuntimeError:
+        capture again. Resets are not in the graph (``FixedWingEnv.reset_tensors``, between
+        replays)."""
         device = self.env.device
         if device.type != "cuda":
             raise ValueError(f"a CUDA graph needs a CUDA device; this env is on {device}")
