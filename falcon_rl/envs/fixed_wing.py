@@ -281,12 +281,13 @@ class FixedWingEnv(EnvBase):
         mask = (torch.ones(n, dtype=torch.bool, device=self.device) if mask is None
                 else mask.reshape(n).to(self.device, torch.bool))
         initial = self.task.sample_initial(mask)
-        publish = with_state or not self.config.fused or self.task.fused_starter() is None
+        starter = self.task.fused_starter() if self.config.fused else None  # asked once per reset
+        publish = with_state or starter is None
         state = self.sim.reset(initial, mask=mask, publish=publish)
         if publish and not isinstance(state, TensorDictBase):  # a facade whose reset returns nothing
             state = self.sim.state
         self.step_count.masked_fill_(mask, 0)
-        return self.task.start_episodes(state, mask, fused=self.config.fused), state
+        return self.task.start_episodes(state, mask, starter), state
 
     def observe(self, state: TensorDictBase) -> torch.Tensor:
         """[N, D] observation the task makes of ``state`` (fields as under ("state", ...), e.g. a

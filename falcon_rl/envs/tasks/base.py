@@ -235,13 +235,13 @@ class Task(ABC):
         self.previous_action[mask] = 0.0
         self.time[mask] = 0.0
 
-    def start_episodes(self, state: TensorDictBase | None, mask: torch.Tensor, fused: bool = True
-                       ) -> torch.Tensor:
+    def start_episodes(self, state: TensorDictBase | None, mask: torch.Tensor,
+                       starter: FusedTaskStep | None = None) -> torch.Tensor:
         """[N, D] observation (a new tensor) after the rows in ``mask`` [N] bool were reset to ``state``,
-        the simulator's: :meth:`after_reset` then :meth:`observe`, or, with ``fused`` and a fused step
-        that has a start kernel (:meth:`fused_starter`), the same in one backend launch (parity tested),
-        which reads the simulator's buffers (``state`` may then be None)."""
-        starter = self.fused_starter() if fused else None
+        the simulator's: :meth:`after_reset` then :meth:`observe`, or, given ``starter`` (this task's
+        :meth:`fused_starter`, which the caller asked for once before the reset), the same in one
+        backend launch (parity tested), which reads the simulator's buffers (``state`` may then be
+        None)."""
         if starter is not None:
             return starter.start(mask).clone()
         if state is None:
