@@ -2,8 +2,10 @@
 exposes ``NAME``, ``HELP``, ``add_arguments(parser)`` and ``run(args) -> int``.
 
 Conventions: ``--json`` prints exactly one JSON document on stdout (messages go to stderr);
-exit 0 on success, 2 on bad input with a one-line reason on stderr. What the subcommands share
-(:class:`UsageError`, :func:`emit`) lives in :mod:`falcon_rl.commands._common`, below this module.
+exit 0 on success, 2 on bad input with a one-line reason on stderr, 1 with a one-line reason when the
+system refuses a file operation (a full disk, a permission taken away mid-run: :func:`system_error`;
+outputs are written atomically, so earlier ones stay intact and no temporary is left). What the
+subcommands share (:class:`UsageError`, :func:`emit`) lives in :mod:`falcon_rl.commands._common`, below this module.
 
 Start-up stays light: the command modules import torch, TorchRL and Warp inside ``run`` (and inside
 ``add_arguments`` where their options need the registries), and the parser adds the arguments of the
@@ -105,6 +107,12 @@ def _stdout_gone() -> int:
     return 0
 
 
+def system_error(error: OSError) -> str:
+    """One line for an ``OSError`` of the system (``No space left on device: 'runs/x/policy.pt'``)."""
+    reason = error.strerror or one_line(error)
+    return one_line(f"{reason}: {str(error.filename)!r}" if error.filename is not None else reason)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``falcon-rl`` with ``argv`` (default: the process arguments); returns the exit code."""
     argv = sys.argv[1:] if argv is None else list(argv)
@@ -119,6 +127,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         except _known_errors() as exc:
             print(f"falcon-rl {args.command}: error: {one_line(exc)}", file=sys.stderr)
             return 2
+        except BrokenPipeError:
+            raise
+        except OSError as exc:
+            print(f"falcon-rl {args.command}: error: {system_error(exc)}", file=sys.stderr)
+            return 1
         sys.stdout.flush()
         return code
     except BrokenPipeError:
@@ -128,7 +141,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 130
 
 
-__all__ = ["DESCRIPTION", "EPILOG", "UsageError", "build_parser", "command_modules", "emit", "main"]
+__all__ = ["DESCRIPTION", "EPILOG", "UsageError", "build_parser", "command_modules", "emit", "main",
+           "system_error"]
 
 
 if __name__ == "__main__":

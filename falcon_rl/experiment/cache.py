@@ -6,8 +6,7 @@ Each file ``<key>.json`` holds
     {"format": "falcon-rl-cell/1", "key": str, "cell": Cell.to_dict(), "version": code_version(),
      "started": ISO-8601 UTC, "finished": ISO-8601 UTC, "result": {"summary": {...}, "seconds": ..., ...}}
 
-written atomically (a temporary file in the folder, then ``os.replace``), so a file is either whole or
-absent. A file that cannot be read or does not match its cell is reported with a warning and treated as
+written atomically (:func:`falcon_rl.atomic_files.write_atomic`), so a file is either whole or absent. A file that cannot be read or does not match its cell is reported with a warning and treated as
 missing: the cell is recomputed and the file replaced.
 """
 
@@ -15,7 +14,6 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 import time
 import warnings
 from collections.abc import Iterable, Iterator, Mapping
@@ -23,6 +21,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
+from ..atomic_files import write_atomic
 from .cells import Cell, code_version, jsonable, normalize_result
 
 CACHE_FORMAT = "falcon-rl-cell/1"
@@ -33,22 +32,9 @@ def _iso(seconds: float) -> str:
 
 
 def write_json_atomic(path: Path, document: Any) -> Path:
-    """Write ``document`` (made JSON-able, non-finite floats as null) to ``path`` through a temporary file
-    in the same folder and ``os.replace``."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    text = json.dumps(jsonable(document), indent=1, allow_nan=False)
-    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=".tmp")
-    try:
-        with os.fdopen(handle, "w") as stream:
-            stream.write(text + "\n")
-            stream.flush()
-            os.fsync(stream.fileno())
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise
-    return path
+    """Write ``document`` (made JSON-able, non-finite floats as null) to ``path`` atomically
+    (:func:`falcon_rl.atomic_files.write_atomic`)."""
+    return write_atomic(path, json.dumps(jsonable(document), indent=1, allow_nan=False) + "\n")
 
 
 class CellCache:

@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import hashlib
 import itertools
-import os
 import pickle
 import warnings
 import zipfile
@@ -36,6 +35,8 @@ from typing import Any, Protocol
 import torch
 from tensordict.nn import TensorDictModule
 from torch import nn
+
+from ..atomic_files import serialized, write_atomic
 
 FORMAT = "falcon-rl-policy/2"
 #: Earlier formats still read: /1 had no checksum.
@@ -149,20 +150,9 @@ def read_document(path: str | Path, what: str, map_location: str | torch.device 
 
 
 def atomic_save(obj: Any, path: str | Path) -> Path:
-    """``torch.save(obj)`` to ``path`` through a temporary file and ``os.replace``."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    try:
-        with open(tmp, "wb") as f:
-            torch.save(obj, f)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
-    return path
+    """``torch.save(obj)`` to ``path`` atomically (:func:`falcon_rl.atomic_files.write_atomic`: serialised
+    in memory, written through a temporary of a unique name, moved over ``path``)."""
+    return write_atomic(path, serialized(lambda stream: torch.save(obj, stream)))
 
 
 # ---------------------------------------------------------------------------------------- policies
@@ -314,11 +304,8 @@ def export_torchscript(path: str | Path, policy_path: str | Path) -> Path:
     policy, meta = read_policy(policy_path)
     example = torch.zeros(1, policy.mlp[0].in_features)
     traced = torch.jit.trace(policy, example, check_inputs=[(torch.zeros(4, example.shape[-1]),)])
-    path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
-    torch.jit.save(traced, str(tmp), _extra_files={"meta.txt": repr(meta)})
-    tmp.replace(path)
-    return path
+    return write_atomic(path, serialized(lambda stream: torch.jit.save(traced, stream,
+                                                                     _extra_files={"meta.txt": repr(meta)})))
 
 
 __all__ = ["ACTIVATIONS", "FORMAT", "LEGACY_FORMATS", "MAX_LAYERS", "MAX_PARAMETERS", "MAX_WIDTH",

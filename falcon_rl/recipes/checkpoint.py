@@ -19,7 +19,8 @@ the same transitions it would have. ``sha256`` is the content checksum of the re
 (:func:`falcon_rl.policies.format.content_digest`), verified on reading; format 1 (no checksum) is
 read as legacy.
 
-Files are written to ``<path>.tmp`` and moved over ``path`` with ``os.replace`` (atomic on POSIX), so
+Files are written to a temporary of a unique name and moved over ``path`` with ``os.replace``
+(:func:`falcon_rl.atomic_files.write_atomic`), so
 a run killed mid-write leaves the previous checkpoint intact and no partial file under ``path``.
 Every unreadable, corrupt, foreign or mismatched checkpoint is a one-line
 :class:`~falcon_rl.policies.format.FileFormatError` naming the file.

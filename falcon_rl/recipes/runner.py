@@ -41,6 +41,7 @@ import torch
 from tensordict import TensorDictBase
 from torchrl.collectors import Collector
 
+from ..atomic_files import remove_temporaries, write_atomic
 from ..envs import task_spec
 from ..policies import FileFormatError, export_torchscript
 from ..policies.format import atomic_save, policy_document
@@ -60,7 +61,7 @@ from .evaluate import eval_scalars, evaluate
 from .logging import Progress, log_scalars, make_logger
 from .selection import VALIDATION_SEED, BestPolicy, conditions_met, parse_stop_when
 
-#: Files a run writes under ``out`` (each through ``<name>.tmp``).
+#: Files a run writes under ``out`` (each atomically, :func:`falcon_rl.atomic_files.write_atomic`).
 OUTPUT_FILES = ("checkpoint.pt", "policy.pt", "policy.ts", "summary.json")
 
 
@@ -78,7 +79,7 @@ def prepare(algorithm: str, cfg: TrainConfig) -> dict | None:
         return None
     out = Path(cfg.out)
     for name in OUTPUT_FILES:
-        (out / f"{name}.tmp").unlink(missing_ok=True)
+        remove_temporaries(out / name)
     path = out / "checkpoint.pt"
     if not cfg.resume:
         return None
@@ -303,9 +304,7 @@ class TrainingRun:
             summary["eval"] = None if self.final_eval is None else dict(self.final_eval.summary)
             summary["eval_episodes"] = self.cfg.final_eval_episodes
         if self.out is not None:
-            tmp = self.out / "summary.json.tmp"
-            tmp.write_text(json.dumps(summary, indent=2, default=str))
-            tmp.replace(self.out / "summary.json")
+            write_atomic(self.out / "summary.json", json.dumps(summary, indent=2, default=str))
         return summary
 
 
