@@ -5,7 +5,8 @@ Conventions: ``--json`` prints exactly one JSON document on stdout (messages go 
 exit 0 on success, 2 on bad input with a one-line reason on stderr, 1 with a one-line reason when the
 system refuses a file operation (a full disk, a permission taken away mid-run: :func:`system_error`;
 outputs are written atomically, so earlier ones stay intact and no temporary is left). What the
-subcommands share (:class:`UsageError`, :func:`emit`) lives in :mod:`falcon_rl.commands._common`, below this module.
+subcommands share (:class:`UsageError`, :func:`emit`) lives in :mod:`falcon_rl.commands._common`, below
+this module.
 
 Start-up stays light: the command modules import torch, TorchRL and Warp inside ``run`` (and inside
 ``add_arguments`` where their options need the registries), and the parser adds the arguments of the

@@ -6,7 +6,8 @@ Each file ``<key>.json`` holds
     {"format": "falcon-rl-cell/1", "key": str, "cell": Cell.to_dict(), "version": code_version(),
      "started": ISO-8601 UTC, "finished": ISO-8601 UTC, "result": {"summary": {...}, "seconds": ..., ...}}
 
-written atomically (:func:`falcon_rl.atomic_files.write_atomic`), so a file is either whole or absent. A file that cannot be read or does not match its cell is reported with a warning and treated as
+written atomically (:func:`falcon_rl.atomic_files.write_atomic`), so a file is either whole or absent.
+A file that cannot be read or does not match its cell is reported with a warning and treated as
 missing: the cell is recomputed and the file replaced.
 """
 
