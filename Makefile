@@ -16,6 +16,7 @@ $(PY):
 $(STAMP): $(PY) pyproject.toml
 	$(PY) -m pip install -q "torch==2.13.0"
 	$(PY) -m pip install -q -e ".[dev]"
+	$(PY) -m falcon_rl_gymnasium_hook >/dev/null   # the start-up file a wheel carries (editable: by hand)
 	touch $(STAMP)
 
 install: $(STAMP)
@@ -23,7 +24,7 @@ install: $(STAMP)
 # Ruff, the API reference site in strict mode (any warning fails: a broken link, a missing include,
 # a docstring the site cannot render), then the tests.
 test: $(STAMP)
-	$(PY) -m ruff check falcon_rl tests examples benchmarks docs
+	$(PY) -m ruff check falcon_rl tests examples benchmarks docs setup.py falcon_rl_gymnasium_hook.py
 	$(MKDOCS) build --strict --quiet
 	$(PY) -m pytest -q -p no:cacheprovider
 
@@ -31,7 +32,7 @@ demo: $(STAMP)
 	$(PY) -m falcon_rl.cli demo
 
 lint: $(STAMP)
-	$(PY) -m ruff check falcon_rl tests examples benchmarks docs
+	$(PY) -m ruff check falcon_rl tests examples benchmarks docs setup.py falcon_rl_gymnasium_hook.py
 
 # The API reference site -> site/index.html (`make test` builds it strictly;
 # `.venv/bin/mkdocs serve` serves it with live reload).

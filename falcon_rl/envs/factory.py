@@ -12,6 +12,16 @@ from .fixed_wing import FixedWingEnv, FixedWingEnvConfig
 from .tasks import task_spec
 
 
+def unknown_options(task: str, unknown: list[str], env_fields: set[str], task_fields: set[str]) -> TypeError:
+    """The ``TypeError`` for options ``make_env`` does not know, worded as Python words it for a function
+    ("got an unexpected keyword argument 'frameskip'"): clients that probe a keyword and drop it when
+    refused (TorchRL's ``GymEnv`` does so with ``frameskip``) read that phrase."""
+    names = ", ".join(repr(name) for name in unknown)
+    got = "an unexpected keyword argument" if len(unknown) == 1 else "unexpected keyword arguments"
+    return TypeError(f"make_env() got {got} {names} (task {task!r}); env options: {sorted(env_fields)}, "
+                     f"task options: {sorted(task_fields)}")
+
+
 def make_env(task: str, airframe: str = "navion", num_envs: int = 1, backend: str = "warp",
              device: str = "cpu", seed: int | None = None, *, sensors: object = None,
              obs_delay_ms: object = None, action_delay_ms: object = None, randomize: object = None,
@@ -44,8 +54,7 @@ def make_env(task: str, airframe: str = "navion", num_envs: int = 1, backend: st
     task_fields = {f.name for f in fields(task_config_cls)}
     unknown = set(options) - env_fields - task_fields
     if unknown:
-        raise TypeError(f"unknown options {sorted(unknown)} for task {task!r}; env options: "
-                        f"{sorted(env_fields)}, task options: {sorted(task_fields)}")
+        raise unknown_options(task, sorted(unknown), env_fields, task_fields)
     spec = task_spec(task)
     task_config = options.pop("task_config", None)
     task_options = {k: v for k, v in options.items() if k in task_fields and k not in env_fields}
@@ -79,4 +88,4 @@ def add_observation_norm(env: EnvBase, frames: int = 1000, min_std: float = 1e-2
     return env
 
 
-__all__ = ["add_observation_norm", "make_env"]
+__all__ = ["add_observation_norm", "make_env", "unknown_options"]

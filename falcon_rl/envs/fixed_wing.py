@@ -199,7 +199,7 @@ class FixedWingEnv(EnvBase):
         self.sim = Simulator(self.airframe, num_envs=config.num_envs, backend=config.backend,
                              device=device, dt=config.dt, integrator=config.integrator,
                              ground_effect=config.ground_effect,
-                             wind=None if config.wind is None else list(config.wind),
+                             wind=config.wind,
                              turbulence=turbulence, seed=config.seed, model=config.model, dtype=config.dtype,
                              compile=config.compile, warp_cpu_threads=config.warp_cpu_threads,
                              check_inputs=False)  # actions are checked by the env: no second check, no sync

@@ -1,7 +1,6 @@
 """Gymnasium wrapper: one aircraft, NumPy in and out, for Stable-Baselines3 and other Gym users.
 
-    import gymnasium as gym
-    import falcon_rl  # registers falcon_rl/<Task>-v0
+    import gymnasium as gym  # registers falcon_rl/<Task>-v0 (falcon_rl_gymnasium_hook; or import falcon_rl)
     env = gym.make("falcon_rl/Altitude-v0", airframe="volantex_ranger")
     obs, info = env.reset(seed=0)
     envs = gym.make_vec("falcon_rl/Altitude-v0", num_envs=256, vectorization_mode="vector_entry_point")
@@ -46,7 +45,7 @@ from torchrl.envs import EnvBase
 
 from ..physics.engine import fresh_seed
 from ..transforms.action_check import refuse_bad_action
-from .gym_render import RENDER_MODES, GymRenderer, check_render_mode
+from .gym_render import RENDER_MODES, GymRenderer, available_render_modes, check_render_mode
 from .tasks.registry import TASK_SPECS, SpecView, task_spec
 
 #: Task name -> Gymnasium id (a live, read-only view of the task registry).
@@ -159,6 +158,7 @@ class CoreAircraftEnv(gymnasium.Env):
     any robustness option (a ``TransformedEnv``), steps through TorchRL's ``step``. Both give the same
     numbers (tests/test_gym.py steps both side by side)."""
 
+    #: Every mode the class knows; an instance lists those that work here (no "human" when headless).
     metadata: dict[str, Any] = {"render_modes": list(RENDER_MODES)}  # noqa: RUF012 (gymnasium's)
 
     def __init__(self, task: str = "altitude", airframe: str = "navion", backend: str = DEFAULT_BACKEND,
@@ -169,7 +169,8 @@ class CoreAircraftEnv(gymnasium.Env):
         check_render_mode(render_mode)
         self.env, self.build_seed = build_env(task, airframe, 1, backend, device, seed, options)
         base = getattr(self.env, "base_env", self.env)
-        self.metadata = {**self.metadata, "render_fps": 1.0 / base.control_dt}
+        self.metadata = {**self.metadata, "render_modes": available_render_modes(),
+                         "render_fps": 1.0 / base.control_dt}
         #: Gymnasium's render mode; the view is built only when there is one (see ``gym_render``).
         self.render_mode = render_mode
         self._renderer: GymRenderer | None = None if render_mode is None else GymRenderer(

@@ -1,6 +1,8 @@
 """``render()`` for the Gymnasium envs: ``render_mode="rgb_array"`` returns the current frame
 [H, W, 3] uint8 (a chase view of the aircraft with its trail coloured by bank); ``"human"`` shows it
-in a matplotlib window at every step (it needs a display). The frames come from the same renderer as
+in a matplotlib window at every step (it needs a display, so an env lists it in its ``metadata``
+only where a window can open: :func:`available_render_modes`; Gymnasium's ``check_env`` makes an env in
+every listed mode, and passes on a headless machine). The frames come from the same renderer as
 ``falcon-rl fly --gif`` (:class:`falcon_rl.viz.live.FlightView`, a higher layer, named here by
 reference and imported the first time an env renders). An env made without ``render_mode`` builds
 nothing and reads nothing for rendering.
@@ -28,6 +30,11 @@ def display_available() -> bool:
     if not sys.platform.startswith("linux"):
         return True
     return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+def available_render_modes() -> list[str]:
+    """The render modes that work here: :data:`RENDER_MODES` less "human" without a display."""
+    return [mode for mode in RENDER_MODES if mode != "human" or display_available()]
 
 
 def check_render_mode(mode: str | None) -> None:

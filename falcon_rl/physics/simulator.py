@@ -32,7 +32,7 @@ from .rotations import euler_to_quaternion
 from .state import MAX_RESET_POSITION, MAX_RESET_RATE, MAX_RESET_SPEED, MIN_QUATERNION_NORM
 from .switches import ModelSwitches, switch_flags
 from .trim import trim_level
-from .wind import Turbulence, TurbulenceConfig, turbulence_config
+from .wind import Turbulence, TurbulenceConfig, steady_wind, turbulence_config
 
 BACKENDS = tuple(ENGINES)
 DEFAULT_HEIGHT = 100.0
@@ -119,7 +119,7 @@ class Simulator:
             integrator=integrator, turbulence=turbulence_config(turbulence), seed=seed,
             options={k: v for k, v in options.items() if k in engine_cls.OPTIONS}))
         if wind is not None:
-            self.wind_ned[:] = torch.as_tensor(wind, dtype=dtype, device=device)
+            self.wind_ned[:] = steady_wind(wind, num_envs, dtype, device)
         self.stop_at_ground = bool(stop_at_ground)
         self._default: torch.Tensor | None = None
         self._default_command: torch.Tensor | None = None

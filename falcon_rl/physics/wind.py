@@ -70,6 +70,21 @@ HIGH_ALTITUDE_SIGMA_FPS = (
 _SQRT3_2 = 0.5 * math.sqrt(3.0)
 
 
+def steady_wind(wind: object, num_envs: int, dtype: torch.dtype, device: torch.device) -> torch.Tensor:
+    """``wind`` (NED m/s, [3] for every env or [N, 3] per env) as an [N, 3] tensor, or a one-line
+    ValueError naming the constraint: real numbers, finite, one of those two shapes."""
+    try:
+        array = torch.as_tensor(wind, dtype=torch.float64)
+    except (TypeError, ValueError, RuntimeError):
+        raise ValueError(f"wind must be real numbers in NED m/s, [3] or [{num_envs}, 3]; "
+                         f"got {wind!r}") from None
+    if tuple(array.shape) not in ((3,), (num_envs, 3)):
+        raise ValueError(f"wind must have shape [3] or [{num_envs}, 3] (NED m/s), got {list(array.shape)}")
+    if not torch.isfinite(array).all():
+        raise ValueError(f"wind must be finite (NED m/s), got {array.tolist()}")
+    return array.to(dtype=dtype, device=device).expand(num_envs, 3)
+
+
 def severity_w20(severity: str | float) -> float:
     """W20 in m/s of a MIL severity name, or of a number given in m/s (returned as is)."""
     if isinstance(severity, str):
