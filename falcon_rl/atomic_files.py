@@ -41,7 +41,8 @@ def temporary_prefix(path: str | os.PathLike[str]) -> str:
 def write_atomic(path: str | os.PathLike[str], data: bytes | str) -> Path:
     """Write ``data`` (text is UTF-8 encoded) to ``path`` atomically (see the module docstring); the
     folder is created when missing. Returns ``path``; raises the ``OSError`` of a failed write (full
-    disk, no permission) after removing the temporary."""
+    disk, no permission; named after ``path`` when the system named no file) after removing the
+    temporary."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     payload = data.encode() if isinstance(data, str) else bytes(data)
@@ -54,6 +55,11 @@ def write_atomic(path: str | os.PathLike[str], data: bytes | str) -> Path:
             os.fsync(stream.fileno())
         os.chmod(temporary, default_file_mode())
         os.replace(temporary, path)
+    except OSError as error:
+        Path(temporary).unlink(missing_ok=True)
+        if error.filename is None:  # a write to the descriptor: name the file it was for
+            raise OSError(error.errno, error.strerror, str(path)) from error
+        raise
     except BaseException:
         Path(temporary).unlink(missing_ok=True)
         raise

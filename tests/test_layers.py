@@ -25,7 +25,7 @@ PACKAGE_DIR = Path(__file__).resolve().parents[1] / ROOT
 #: ``validation`` and ``derive`` import only physics and the airframe, so they sit on the lowest layer that
 #: allows it; ``objectives`` is the deprecated alias of ``recipes``.
 LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
-    ("constants", ("falcon_rl.constants", "falcon_rl._lazy")),
+    ("constants", ("falcon_rl.constants", "falcon_rl._lazy", "falcon_rl.atomic_files")),
     ("airframe", ("falcon_rl.airframe", "falcon_rl.airframe_tables")),
     ("physics / recording", ("falcon_rl.physics", "falcon_rl.recording")),
     ("envs / transforms / baselines / policies / validation / derive",

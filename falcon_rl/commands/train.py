@@ -12,6 +12,17 @@ run would. ``--resume`` needs ``<out>/checkpoint.pt`` of the same algorithm, tas
 seed, backend and device (``falcon_rl.recipes.checkpoint.IDENTITY_FIELDS``); a missing, corrupt or
 mismatched checkpoint exits 2 with one line naming it. Bad flags and ``--set`` values (types, ranges,
 an unknown field, a device this machine lacks, an unwritable ``--out``) exit 2 before anything runs.
+
+``--stop-when`` stops at the first validation (``--eval-every``, ``eval_episodes`` episodes) that meets
+every condition *and* whose weights meet them again on ``confirm_episodes`` confirmation episodes (100
+by default, on seeds of their own: neither the validation's nor the final test's); a confirmation that
+misses one lets training go on (``falcon_rl.recipes.selection``). The run ships the confirmed weights.
+
+One run per ``--out``: a run locks ``<out>/.lock`` for its whole life (released when it ends or its
+process dies), and a second run into the folder meanwhile exits 2 with one line naming it. A run whose
+ended training episodes are all non-finite (termination reason "non_finite") exits 2 with one line and
+exports no policy; a refused file operation (a full disk) exits 1 with one line, leaving the earlier
+outputs whole and no temporary file (``falcon_rl.recipes.runner``).
 """
 
 from __future__ import annotations
@@ -59,7 +70,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--stop-when", default=None, metavar="CONDITIONS",
                         help="stop at the first validation meeting every condition, e.g. "
                              "\"survival>=1,acquisition>=0.95,rmse_m<=0.5\" (the task protocol's metrics, "
-                             "averaged over its cases); needs validations (--eval-every)")
+                             "averaged over its cases), once confirm_episodes more episodes (--set; default "
+                             "100, seeds of their own) meet them too; otherwise training goes on. Needs "
+                             "validations (--eval-every)")
     parser.add_argument("--eval-episodes", type=nonnegative_int, default=None,
                         help="episodes of the final evaluation")
     parser.add_argument("--threads", type=positive_int, default=None, help="torch CPU threads (default 1)")
@@ -111,6 +124,7 @@ def _config(recipe, args: argparse.Namespace, out: str, overrides: dict):
 
 def run(args: argparse.Namespace) -> int:
     from ..recipes import algorithm
+    from ..recipes.runner import release_run_folder
 
     if args.logger in ("tensorboard", "wandb") and importlib.util.find_spec(args.logger) is None:
         raise UsageError(f"--logger {args.logger} needs the {args.logger} package "
@@ -118,7 +132,10 @@ def run(args: argparse.Namespace) -> int:
     recipe = algorithm(args.algorithm)
     out = args.out or f"runs/{args.algorithm}_{args.task}_{args.airframe}"
     cfg = _config(recipe, args, out, parse_overrides(args.set))
-    summary = recipe.train(cfg)
+    try:
+        summary = recipe.train(cfg)
+    finally:
+        release_run_folder(cfg.out)  # a run that raised still holds its folder
     summary["config"] = cfg.to_dict()
     lines = [f"{args.algorithm} on {args.task} / {args.airframe}: {summary['frames']:,} frames in "
              f"{summary['wall_seconds']:.0f} s ({summary['env_steps_per_s']:,.0f} env-steps/s "

@@ -25,7 +25,7 @@ MAX_ENVS = 1 << 20
 #: Fields (where a recipe has them) and their ranges.
 AT_LEAST_ONE = ("num_envs", "rollout_steps", "epochs", "minibatches", "batch_size", "buffer_size",
                 "updates_per_batch", "policy_delay", "frames", "checkpoint_every", "n_step")
-AT_LEAST_ZERO = ("seed", "threads", "eval_every", "eval_episodes", "final_eval_episodes",
+AT_LEAST_ZERO = ("seed", "threads", "eval_every", "eval_episodes", "final_eval_episodes", "confirm_episodes",
                  "init_random_frames")
 POSITIVE = ("lr", "actor_lr", "critic_lr", "alpha_lr", "alpha_init", "norm_min_std", "clip_epsilon",
             "max_grad_norm", "episode_seconds", "eval_seconds", "reward_scale")

@@ -27,8 +27,12 @@ from torch import nn
 from torchrl.envs import ExcludeTransform, RewardSum, TransformedEnv
 
 from ..envs import make_env, task_spec
+from ..envs.tasks import TERMINATION_CODE
 from ..policies.format import ACTIVATIONS
 from ..transforms import flight_env
+
+#: The "termination_reason" of an episode that ended on a state, reward or action that was not finite.
+NON_FINITE = TERMINATION_CODE["non_finite"]
 
 
 @dataclass
@@ -85,6 +89,10 @@ class TrainConfig:
     #: over its cases; :func:`falcon_rl.recipes.selection.parse_stop_when`); needs ``eval_every``.
     #: "" trains all ``frames``.
     stop_when: str = ""
+    #: Episodes (per case) that confirm a validation meeting ``stop_when`` before the run stops, on
+    #: their own seeds (``seed + CONFIRMATION_SEED``: neither the validation's nor the test's); when
+    #: they miss a condition the run trains on. 0 stops on the validation alone.
+    confirm_episodes: int = 100
     #: Episodes of the periodic evaluation and of the final one (on the task's protocol: per maneuver on
     #: the attitude protocol), and their length, s (None: the protocol's own, 30 s on altitude).
     eval_episodes: int = 16
@@ -398,10 +406,18 @@ class EpisodeStats:
     survival: float = math.nan
     start: float = field(default_factory=time.perf_counter)
     frames_at_start: int = 0
+    #: Episodes that ended in the batches seen so far, and those of them that ended "non_finite" (a
+    #: state, reward or action that was not finite; counted where the batch holds "termination_reason").
+    episodes_ended: int = 0
+    non_finite_ended: int = 0
 
     def update(self, batch, reward_key=("next", "episode_reward")) -> dict[str, float]:
-        """Scalars of one collected batch (episodes that ended in it)."""
+        """Scalars of one collected batch [N, T] (episodes that ended in it); counts its ended episodes."""
         done = batch["next", "done"].squeeze(-1)
+        self.episodes_ended += int(done.sum())
+        reason = batch.get(("next", "termination_reason"), None)
+        if reason is not None:
+            self.non_finite_ended += int((reason.squeeze(-1)[done] == NON_FINITE).sum())
         if done.any():
             self.mean_return = float(batch.get(reward_key).squeeze(-1)[done].mean())
             terminated = batch["next", "terminated"].squeeze(-1)[done]

@@ -21,8 +21,23 @@ episodes (seed + ``VALIDATION_SEED``); with ``keep_best`` the run ships the best
 and its last weights (:mod:`.selection`; the checkpoint keeps the best so far and the last weights,
 to go on training from). The final evaluation flies the shipped policy on the test episodes (seed +
 ``EVAL_SEED``), which no choice of the run has seen. With ``stop_when`` the run ends at the first
-validation that meets its conditions (``summary["solved"]``: the frames and wall seconds it took); a
-checkpoint remembers it, so resuming a solved run with the same conditions only finishes it.
+validation that meets its conditions and whose weights meet them again on ``confirm_episodes``
+confirmation episodes of their own seeds (seed + ``CONFIRMATION_SEED``; :mod:`.selection`); a
+confirmation that misses a condition lets the run train on. A solved run ships the confirmed weights
+(its last; with ``keep_best`` too) and reports the frames and wall seconds it took, the validation and
+the confirmation (``summary["solved"]``); a checkpoint remembers it, so resuming a solved run with the
+same conditions only finishes it.
+
+One run per folder: :func:`prepare` takes an exclusive lock on ``<out>/.lock`` (``fcntl.flock``) before
+it touches anything there and the run holds it to its end (:meth:`TrainingRun.finish`); the system
+drops it when the process dies, and a later run of the same process takes it over. A second run into
+the folder meanwhile is refused with a one-line ValueError; only the lock holder removes the
+temporaries a killed writer left.
+
+Non-finite episodes: a run whose ended training episodes all ended "non_finite" (a state, reward or
+action that was not finite: a broken env option, airframe or policy) fails with a one-line ValueError,
+checked after every batch, before any checkpoint, validation or export: it exports nothing. One episode
+that ended otherwise (a crash, a stall, a truncation) shows the env flies, and clears the check.
 
 Time: the summary's ``time_split`` divides this process's training loop into collecting (the Collector:
 env steps, resets, the policy's forward passes), validating and learning (the rest), wall seconds.
@@ -30,7 +45,9 @@ env steps, resets, the policy's forward passes), validating and learning (the re
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import fcntl
 import json
 import os
 import time
@@ -41,7 +58,7 @@ import torch
 from tensordict import TensorDictBase
 from torchrl.collectors import Collector
 
-from ..atomic_files import remove_temporaries, write_atomic
+from ..atomic_files import default_file_mode, remove_temporaries, write_atomic
 from ..envs import task_spec
 from ..policies import FileFormatError, export_torchscript
 from ..policies.format import atomic_save, policy_document
@@ -59,17 +76,59 @@ from .common import (
 )
 from .evaluate import eval_scalars, evaluate
 from .logging import Progress, log_scalars, make_logger
-from .selection import VALIDATION_SEED, BestPolicy, conditions_met, parse_stop_when
+from .selection import CONFIRMATION_SEED, VALIDATION_SEED, BestPolicy, conditions_met, parse_stop_when
 
 #: Files a run writes under ``out`` (each atomically, :func:`falcon_rl.atomic_files.write_atomic`).
 OUTPUT_FILES = ("checkpoint.pt", "policy.pt", "policy.ts", "summary.json")
+#: The file under ``out`` whose lock a run holds (it holds this process's id; it stays after the run).
+LOCK_FILE = ".lock"
+
+#: Run folder (resolved) -> descriptor of its lock file, for the folders this process's runs hold.
+_HELD: dict[Path, int] = {}
+
+
+def lock_run_folder(out: str | os.PathLike[str]) -> None:
+    """Take the exclusive lock of the run folder ``out`` (created when missing) for this process, or
+    raise a one-line ValueError naming it when another run holds it. A lock this process took before
+    (a run that raised) is released first."""
+    folder = Path(out)
+    folder.mkdir(parents=True, exist_ok=True)
+    key = folder.resolve()
+    release_run_folder(key)
+    descriptor = os.open(key / LOCK_FILE, os.O_RDWR | os.O_CREAT, default_file_mode())
+    try:
+        fcntl.flock(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        holder = os.read(descriptor, 32).decode(errors="replace").strip()
+        os.close(descriptor)
+        raise ValueError(f"{folder}: another training run{f' (process {holder})' if holder.isdigit() else ''}"
+                         f" holds this output folder ({LOCK_FILE}); wait for it to end or choose another "
+                         "output folder") from None
+    except OSError as error:  # a file system without locks: name the file in the one-line message
+        os.close(descriptor)
+        raise OSError(error.errno, error.strerror, str(key / LOCK_FILE)) from None
+    except BaseException:
+        os.close(descriptor)
+        raise
+    _HELD[key] = descriptor
+    with contextlib.suppress(OSError):  # the process id is for the message above only
+        os.ftruncate(descriptor, 0)
+        os.pwrite(descriptor, f"{os.getpid()}\n".encode(), 0)
+
+
+def release_run_folder(out: str | os.PathLike[str] | None) -> None:
+    """Release this process's lock of the run folder ``out`` (nothing when it holds none)."""
+    descriptor = None if out is None else _HELD.pop(Path(out).resolve(), None)
+    if descriptor is not None:
+        os.close(descriptor)  # closing the last descriptor drops the flock
 
 
 def prepare(algorithm: str, cfg: TrainConfig) -> dict | None:
     """Everything before a recipe builds anything: check ``cfg``, set the torch threads, seed every
-    generator with ``cfg.seed``, remove temporary files a killed run left under ``cfg.out``, and read
-    the checkpoint to resume, checked against this run (None for a new run). Without a checkpoint,
-    ``resume=True`` is an error and ``resume="auto"`` starts a new run."""
+    generator with ``cfg.seed``, lock ``cfg.out`` for this run (:func:`lock_run_folder`: a ValueError
+    when another run holds it), remove temporary files a killed run left there, and read the checkpoint
+    to resume, checked against this run (None for a new run). Without a checkpoint, ``resume=True`` is
+    an error and ``resume="auto"`` starts a new run."""
     check_config(cfg)
     set_threads(cfg)
     seed_everything(cfg.seed)
@@ -78,6 +137,7 @@ def prepare(algorithm: str, cfg: TrainConfig) -> dict | None:
             raise ValueError("resume needs an output folder (out) holding checkpoint.pt")
         return None
     out = Path(cfg.out)
+    lock_run_folder(out)  # before anything under out is touched: the temporaries may be another run's
     for name in OUTPUT_FILES:
         remove_temporaries(out / name)
     path = out / "checkpoint.pt"
@@ -111,8 +171,8 @@ class TrainingRun:
         self.final_eval = None
         #: The best validated snapshot so far (``keep_best``; the metric is checked by check_config).
         self.best = BestPolicy(task_spec(cfg.task).select_on or "") if cfg.keep_best else None
-        #: ``stop_when``'s conditions, and the validation that met them: {"frames", "wall_seconds",
-        #: "summary"} (None until then).
+        #: ``stop_when``'s conditions, and the validation that met them, confirmed: {"frames",
+        #: "wall_seconds", "summary" (the validation's), "confirmation" (None without one)} (None until then).
         self.stop_conditions = parse_stop_when(cfg.stop_when, task_spec(cfg.task).metric_keys)
         self.solved: dict | None = None
         #: Wall seconds of this process's training loop spent collecting (the Collector's iteration: env
@@ -148,13 +208,18 @@ class TrainingRun:
         return self.counters
 
     def _saved_solved(self, saved: object, path) -> dict | None:
-        """The checkpoint's solved entry when this run's conditions still hold for its summary."""
+        """The checkpoint's solved entry when this run's conditions still hold for its validation and,
+        unless ``confirm_episodes`` is 0, for its confirmation."""
         if saved is None:
             return None
         if not (isinstance(saved, dict) and type(saved.get("frames")) is int
-                and isinstance(saved.get("wall_seconds"), float) and isinstance(saved.get("summary"), dict)):
+                and isinstance(saved.get("wall_seconds"), float) and isinstance(saved.get("summary"), dict)
+                and isinstance(saved.get("confirmation"), dict | None)):
             raise FileFormatError(path, "damaged solved entry in the checkpoint")
-        return dict(saved) if conditions_met(saved["summary"], self.stop_conditions) else None
+        confirmation = saved.get("confirmation")
+        confirmed = self.cfg.confirm_episodes == 0 or (
+            confirmation is not None and conditions_met(confirmation, self.stop_conditions))
+        return dict(saved) if confirmed and conditions_met(saved["summary"], self.stop_conditions) else None
 
     def remaining_frames(self) -> int:
         """Frames still to collect: none once ``stop_when`` is met."""
@@ -230,7 +295,9 @@ class TrainingRun:
         c.iterations += 1
         c.episodes += int(batch["next", "done"].sum())
         rate = self.stats.rate(c.frames)
-        row = {**self.stats.update(batch), **scalars, "time/env_steps_per_s": rate,
+        episode_scalars = self.stats.update(batch)
+        self.check_episodes_finite()
+        row = {**episode_scalars, **scalars, "time/env_steps_per_s": rate,
                "time/wall_s": time.perf_counter() - self._t0, "time/collect_s": self.timing["collect_s"],
                "time/validate_s": self.timing["validate_s"]}
         log_scalars(self.logger, row, c.frames)
@@ -242,6 +309,17 @@ class TrainingRun:
         if self.solved is None and c.frames - c.last_checkpoint_frames >= cfg.checkpoint_every \
                 and c.frames < cfg.frames:
             self.save()
+
+    def check_episodes_finite(self) -> None:
+        """One-line ValueError when every training episode that ended so far in this process ended
+        "non_finite" (see the module docstring): the env or the policy is broken, nothing is exported."""
+        stats = self.stats
+        if stats.episodes_ended and stats.non_finite_ended == stats.episodes_ended:
+            self.progress.close()
+            raise ValueError(f"training failed: all {stats.episodes_ended} episodes that ended by "
+                             f"{self.counters.frames:,} frames ended non-finite (termination reason "
+                             "'non_finite': a state, reward or action that is not finite; check env_options, "
+                             "the airframe and the policy); no policy exported")
 
     def validate(self) -> None:
         """Score the current weights on the validation episodes; log it, and offer the snapshot to
@@ -259,9 +337,31 @@ class TrainingRun:
         self.progress.write(f"[{c.frames:,} frames, {wall:.0f} s] validation: " + ", ".join(
             f"{k} {v:.3g}" for k, v in result.summary.items()) + (" (best so far)" if kept else ""))
         if self.solved is None and conditions_met(result.summary, self.stop_conditions):
-            self.solved = {"frames": c.frames, "wall_seconds": wall, "summary": dict(result.summary)}
-            self.progress.write(f"[{c.frames:,} frames, {wall:.0f} s] stop_when met ("
-                                + ", ".join(map(str, self.stop_conditions)) + "): training ends here")
+            self._confirm_stop(dict(result.summary))
+
+    def _confirm_stop(self, validation: dict[str, float]) -> None:
+        """The validation ``validation`` met ``stop_when``: fly ``cfg.confirm_episodes`` confirmation
+        episodes, and mark the run solved when they meet the conditions too (or when there are none)."""
+        c, cfg = self.counters, self.cfg
+        conditions = ", ".join(map(str, self.stop_conditions))
+        confirmation = None
+        if cfg.confirm_episodes:
+            start = time.perf_counter()
+            result = evaluate(self.actor, cfg, self.algorithm, cfg.confirm_episodes,
+                              seed_offset=CONFIRMATION_SEED)
+            self.timing["validate_s"] += time.perf_counter() - start
+            confirmation = {} if result is None else dict(result.summary)
+        wall = time.perf_counter() - self._t0
+        prefix = f"[{c.frames:,} frames, {wall:.0f} s] stop_when ({conditions}) met on the validation"
+        if confirmation is not None and not conditions_met(confirmation, self.stop_conditions):
+            self.progress.write(f"{prefix}, not on {cfg.confirm_episodes} confirmation episodes ("
+                                + ", ".join(f"{k} {v:.3g}" for k, v in confirmation.items())
+                                + "): training goes on")
+            return
+        self.solved = {"frames": c.frames, "wall_seconds": wall, "summary": validation,
+                       "confirmation": confirmation}
+        self.progress.write(prefix + (f" and on {cfg.confirm_episodes} confirmation episodes"
+                                      if confirmation is not None else "") + ": training ends here")
 
     # ------------------------------------------------------------------ end
     def meta(self) -> dict:
@@ -273,12 +373,11 @@ class TrainingRun:
         """Final checkpoint, policy file (the best snapshot with ``keep_best``, else the last weights),
         TorchScript export and evaluation; returns a summary."""
         time_split = self.time_split()  # the loop's, before the final validation and the test
-        if self.best is not None and self.best.doc is not None:  # a run too short to validate ships its last
-            if self.counters.last_eval_frames != self.counters.frames:  # solved: validated already
-                self.validate()  # the last weights compete with the snapshots
-            shipped = self.best.doc
-        else:
-            shipped = policy_document(self.actor, self.meta())
+        validated = self.best is not None and self.best.doc is not None  # a run too short ships its last
+        if validated and self.solved is None and self.counters.last_eval_frames != self.counters.frames:
+            self.validate()  # the last weights compete with the snapshots (and may solve the run)
+        selected = validated and self.solved is None  # a solved run ships its confirmed, last weights
+        shipped = self.best.doc if selected else policy_document(self.actor, self.meta())
         self.progress.close()
         wall = time.perf_counter() - self._t0
         rate = self.stats.rate(self.counters.frames)
@@ -287,8 +386,10 @@ class TrainingRun:
                    "updates": self.counters.updates, "episodes": self.counters.episodes,
                    "wall_seconds": wall, "env_steps_per_s": rate, "time_split": time_split,
                    "train_return": self.stats.mean_return, "train_survival": self.stats.survival}
-        if self.best is not None and self.best.doc is not None:
+        if selected:
             summary.update(selected_frames=self.best.frames, validation=self.best.summary)
+        elif self.solved is not None and self.best is not None:  # keep_best: the confirmed weights
+            summary.update(selected_frames=self.solved["frames"], validation=self.solved["summary"])
         if self.stop_conditions:
             summary["solved"] = self.solved
         checkpoint = self.save()  # the last weights, to continue training from
@@ -305,7 +406,8 @@ class TrainingRun:
             summary["eval_episodes"] = self.cfg.final_eval_episodes
         if self.out is not None:
             write_atomic(self.out / "summary.json", json.dumps(summary, indent=2, default=str))
+        release_run_folder(self.out)
         return summary
 
 
-__all__ = ["OUTPUT_FILES", "TrainingRun", "prepare"]
+__all__ = ["LOCK_FILE", "OUTPUT_FILES", "TrainingRun", "lock_run_folder", "prepare", "release_run_folder"]
