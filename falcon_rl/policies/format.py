@@ -18,6 +18,20 @@ line ``<path>: <reason>``; the network a file declares is checked against size l
 tensors' shapes before anything is allocated. Files of format ``falcon-rl-policy/1`` (no checksum,
 such as the shipped ones) load as legacy after the same structure and shape checks.
 
+Finite values: a sound checksum only says that a file is as written, so the values are checked too
+(:func:`value_problem`): every floating-point tensor an actor acts with (the ``mlp`` weights, the
+normaliser's ``mean``, ``var``, ``clip``, ``min_std``) must be finite, ``var`` non-negative, ``clip``
+and ``min_std`` positive. A file that breaks this is refused on reading (:class:`FileFormatError`
+naming the entry, e.g. ``actor weight 'mlp.0.weight' has 3 non-finite values (NaN or inf)``) and never
+written (:func:`save_policy` and :func:`atomic_save` of a policy document raise ValueError before
+anything is written, so an earlier file stays as it was).
+
+TorchScript export: :func:`export_torchscript` scripts :class:`DeployedPolicy` (not a trace, which
+would fix the batch rank), so the exported module checks its input: obs ``[N, D]`` -> action
+``[N, A]``, and as in Python ``[D]`` -> ``[A]`` (one observation) and ``[..., D]`` -> ``[..., A]``;
+any other shape raises ``observation must have shape [N, D] ...`` (in TorchScript a ``torch.jit.Error``
+whose last line is that ValueError).
+
 Writing a file needs only a :class:`PolicyNetwork` (the training recipes' ``PolicyNet`` is one), so this
 module knows nothing about training.
 """
@@ -29,6 +43,7 @@ import itertools
 import pickle
 import warnings
 import zipfile
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -151,8 +166,68 @@ def read_document(path: str | Path, what: str, map_location: str | torch.device 
 
 def atomic_save(obj: Any, path: str | Path) -> Path:
     """``torch.save(obj)`` to ``path`` atomically (:func:`falcon_rl.atomic_files.write_atomic`: serialised
-    in memory, written through a temporary of a unique name, moved over ``path``)."""
+    in memory, written through a temporary of a unique name, moved over ``path``). A policy document
+    (a dict whose ``format`` is a policy format) with non-finite values is refused first (ValueError,
+    :func:`refuse_unsound`): nothing is written."""
+    if isinstance(obj, dict) and isinstance(obj.get("format"), str) and obj["format"] in (FORMAT,
+                                                                                       *LEGACY_FORMATS):
+        refuse_unsound(obj, POLICY_ENTRIES, path)
     return write_atomic(path, serialized(lambda stream: torch.save(obj, stream)))
+
+
+# ---------------------------------------------------------------------------------------- finite values
+#: What a tensor under each top-level entry of a policy file or a checkpoint is called in an error.
+ENTRY_NAMES = {"mlp": "actor weight", "norm": "observation normaliser statistic", "modules": "network weight",
+               "optimizers": "optimiser state", "extra": "entry"}
+#: The entries of a policy file whose values an actor acts with (checked by :func:`value_problem`).
+POLICY_ENTRIES = ("mlp", "norm")
+#: Normaliser statistics that must be >= 0 and those that must be > 0 (besides finite).
+NON_NEGATIVE_STATS, POSITIVE_STATS = ("var", "count"), ("clip", "min_std")
+
+
+def _tensors(value: Any, key: str) -> Iterator[tuple[str, torch.Tensor]]:
+    """(dotted key, tensor) of every tensor in ``value`` (nested dicts, lists and tuples)."""
+    if isinstance(value, torch.Tensor):
+        yield key, value
+    elif isinstance(value, dict):
+        for name, item in value.items():
+            yield from _tensors(item, f"{key}.{name}")
+    elif isinstance(value, (list, tuple)):
+        for i, item in enumerate(value):
+            yield from _tensors(item, f"{key}.{i}")
+
+
+def _plural(count: int, noun: str) -> str:
+    return f"{count} {noun}{'' if count == 1 else 's'}"
+
+
+def value_problem(doc: dict, entries: Iterable[str]) -> str | None:
+    """The first unsound value under ``doc[entry]`` for each of ``entries`` (see the module docstring):
+    a floating-point tensor holding NaN or inf, or a normaliser statistic (``norm`` entry) out of its
+    range; None when every value is sound. Integer and bool tensors (generator states) are not checked.
+    """
+    for entry in entries:
+        what = ENTRY_NAMES.get(entry, "entry")
+        for key, tensor in _tensors(doc.get(entry), entry):
+            if not tensor.is_floating_point():
+                continue
+            bad = int((~torch.isfinite(tensor)).sum())
+            if bad:
+                return f"{what} {key!r} has {_plural(bad, 'non-finite value')} (NaN or inf)"
+            stat = key.removeprefix("norm.") if entry == "norm" else None
+            if stat in NON_NEGATIVE_STATS and bool((tensor < 0).any()):
+                return f"{what} {key!r} has {_plural(int((tensor < 0).sum()), 'negative value')}"
+            if stat in POSITIVE_STATS and not bool((tensor > 0).all()):
+                return f"{what} {key!r} must be > 0, got {tensor.flatten()[0].item():g}"
+    return None
+
+
+def refuse_unsound(doc: dict, entries: Iterable[str], path: str | Path) -> None:
+    """ValueError ``<path>: not written, <problem>`` when :func:`value_problem` finds one: called
+    before a file is written, so that an earlier file at ``path`` stays as it was."""
+    problem = value_problem(doc, entries)
+    if problem is not None:
+        raise ValueError(f"{path}: not written, {problem}")
 
 
 # ---------------------------------------------------------------------------------------- policies
@@ -203,7 +278,8 @@ def layer_sizes(arch: Any) -> list[int]:
 
 def check_policy_document(doc: dict, path: str | Path) -> None:
     """FileFormatError unless ``doc`` is a sound policy file: its format, checksum (legacy /1 files
-    have none), declared network (limits), ``mlp`` tensors of exactly that network and normaliser."""
+    have none), declared network (limits), ``mlp`` tensors of exactly that network and normaliser, all
+    of them finite (:func:`value_problem`)."""
     fmt = doc.get("format")
     if fmt not in (FORMAT, *LEGACY_FORMATS):
         reason = ("a training checkpoint, not a policy file (use <out>/policy.pt)" if isinstance(fmt, int)
@@ -229,16 +305,21 @@ def check_policy_document(doc: dict, path: str | Path) -> None:
         raise FileFormatError(path, f"observation normaliser does not match obs_dim {sizes[0]}")
     if not isinstance(doc.get("meta"), dict):
         raise FileFormatError(path, "no meta entry")
+    problem = value_problem(doc, POLICY_ENTRIES)
+    if problem is not None:
+        raise FileFormatError(path, problem)
 
 
 class DeployedPolicy(nn.Module):
-    """obs [N, D] -> action [N, A] in [-1, 1]; the normaliser lives in buffers. Built uninitialised
-    (no random draws): its weights come from a file."""
+    """obs [N, D] -> action [N, A] in [-1, 1] (also [D] -> [A] and [..., D] -> [..., A]; any other shape
+    is a ValueError); the normaliser lives in buffers. Built uninitialised (no random draws): its
+    weights come from a file. Scriptable (:func:`export_torchscript`)."""
 
     def __init__(self, arch: dict, norm: dict[str, torch.Tensor]):
         super().__init__()
         self.act_dim = int(arch["act_dim"])
         sizes = layer_sizes(arch)
+        self.obs_dim = sizes[0]
         layers: list[nn.Module] = []
         for a, b in itertools.pairwise(sizes):
             layers += [nn.utils.skip_init(nn.Linear, a, b), ACTIVATIONS[arch["activation"]]()]
@@ -251,6 +332,9 @@ class DeployedPolicy(nn.Module):
         self.clip = float(norm["clip"]) if enabled else float("inf")
 
     def forward(self, obs: torch.Tensor) -> torch.Tensor:
+        if obs.dim() == 0 or obs.shape[-1] != self.obs_dim:
+            raise ValueError(f"observation must have shape [N, D={self.obs_dim}] (or [D], [..., D]), "
+                             f"got {list(obs.shape)}")
         x = ((obs.to(self.mean.dtype) - self.mean) / self.std).clamp(-self.clip, self.clip)
         return torch.tanh(self.mlp(x)[..., : self.act_dim])
 
@@ -271,7 +355,8 @@ def policy_from_document(doc: dict) -> DeployedPolicy:
 
 
 def save_policy(path: str | Path, net: PolicyNetwork, meta: dict) -> Path:
-    """Write the policy file for ``net`` atomically."""
+    """Write the policy file for ``net`` atomically; ValueError (nothing written) when its weights or
+    normaliser hold non-finite values."""
     return atomic_save(policy_document(net, meta), path)
 
 
@@ -300,16 +385,17 @@ def load_policy(path: str | Path, env=None) -> TensorDictModule:
 
 
 def export_torchscript(path: str | Path, policy_path: str | Path) -> Path:
-    """Trace the policy file at ``policy_path`` into a TorchScript file (obs [N, D] -> action [N, A])."""
+    """Script the policy file at ``policy_path`` into a TorchScript file: obs [N, D] -> action [N, A]
+    (or [D] -> [A], [..., D] -> [..., A]; another shape raises), ``meta.txt`` (the file's meta) among
+    its extra files. Load it with ``torch.jit.load(path)`` (no falcon-rl needed)."""
     policy, meta = read_policy(policy_path)
-    example = torch.zeros(1, policy.mlp[0].in_features)
-    traced = torch.jit.trace(policy, example, check_inputs=[(torch.zeros(4, example.shape[-1]),)])
-    return write_atomic(path, serialized(lambda stream: torch.jit.save(traced, stream,
+    scripted = torch.jit.script(policy)
+    return write_atomic(path, serialized(lambda stream: torch.jit.save(scripted, stream,
                                                                      _extra_files={"meta.txt": repr(meta)})))
 
 
-__all__ = ["ACTIVATIONS", "FORMAT", "LEGACY_FORMATS", "MAX_LAYERS", "MAX_PARAMETERS", "MAX_WIDTH",
-           "DeployedPolicy", "FileFormatError", "PolicyNetwork", "RunningStats", "atomic_save",
-           "check_policy_document", "content_digest", "export_torchscript", "layer_sizes", "load_policy",
-           "policy_document", "policy_from_document", "read_document", "read_policy", "save_policy", "seal",
-           "verify_seal"]
+__all__ = ["ACTIVATIONS", "ENTRY_NAMES", "FORMAT", "LEGACY_FORMATS", "MAX_LAYERS", "MAX_PARAMETERS",
+           "MAX_WIDTH", "POLICY_ENTRIES", "DeployedPolicy", "FileFormatError", "PolicyNetwork",
+           "RunningStats", "atomic_save", "check_policy_document", "content_digest", "export_torchscript",
+           "layer_sizes", "load_policy", "policy_document", "policy_from_document", "read_document",
+           "read_policy", "refuse_unsound", "save_policy", "seal", "value_problem", "verify_seal"]

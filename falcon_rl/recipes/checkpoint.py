@@ -24,10 +24,23 @@ Files are written to a temporary of a unique name and moved over ``path`` with `
 a run killed mid-write leaves the previous checkpoint intact and no partial file under ``path``.
 Every unreadable, corrupt, foreign or mismatched checkpoint is a one-line
 :class:`~falcon_rl.policies.format.FileFormatError` naming the file.
+
+Values are checked as well as the checksum (which only says that a file is as written): each
+counter is a non-negative integer up to 2**63 - 1 (``wall_seconds`` a finite non-negative number)
+with ``last_checkpoint_frames`` and ``last_eval_frames`` at most ``frames``; the config holds plain
+values only (None, bools, numbers, strings, lists, dicts), as ``TrainConfig.to_dict`` writes them;
+and every floating-point tensor of :data:`FINITE_ENTRIES` is finite
+(:func:`~falcon_rl.policies.format.value_problem`): the networks (actor, critics, their targets and
+the losses' entries), the optimiser states (a NaN moment makes NaN weights at the next step), the
+normaliser and the kept best policy. Such a checkpoint is refused on loading and never written
+(:func:`save_checkpoint` raises ValueError first; the earlier checkpoint stays). Not checked: the
+generator states (integers) and the replay buffer's transitions, which are recorded env data (the env
+publishes no NaN), not parameters.
 """
 
 from __future__ import annotations
 
+import math
 import random
 from collections.abc import Iterator
 from dataclasses import fields
@@ -38,7 +51,15 @@ import torch
 from tensordict import TensorDict
 from torchrl.envs import TransformedEnv
 
-from ..policies.format import FileFormatError, atomic_save, read_document, seal, verify_seal
+from ..policies.format import (
+    FileFormatError,
+    atomic_save,
+    read_document,
+    refuse_unsound,
+    seal,
+    value_problem,
+    verify_seal,
+)
 from ..transforms import flight_env
 from .common import Counters
 
@@ -51,6 +72,10 @@ IDENTITY_FIELDS = ("task", "airframe", "seed", "backend", "device", "cells", "ac
                    "episode_seconds", "buffer_size", "n_step")
 #: What a checkpoint written before an identity field existed had in its place.
 IDENTITY_DEFAULTS = {"critic_layer_norm": False, "n_step": 1}
+#: Entries whose floating-point tensors must be finite (see the module docstring).
+FINITE_ENTRIES = ("modules", "optimizers", "norm", "extra")
+#: Largest counter a checkpoint may hold (int64: what torch's and numpy's generators take as seeds).
+MAX_COUNT = 2**63 - 1
 
 
 # ---------------------------------------------------------------------------------------- generators
@@ -111,11 +136,13 @@ def save_checkpoint(path: str | Path, *, algorithm: str, config: dict, counters:
                     norm: dict[str, torch.Tensor], env=None, extra: dict | None = None,
                     replay=None) -> Path:
     """Write a sealed, resumable checkpoint atomically (see the module docstring for the layout);
-    ``replay`` is the run's replay buffer (None for on-policy runs)."""
+    ``replay`` is the run's replay buffer (None for on-policy runs). ValueError, with nothing written,
+    when a network, optimiser state or the normaliser holds non-finite values."""
     doc = {"format": FORMAT, "algorithm": algorithm, "config": config, "counters": counters,
            "modules": {k: m.state_dict() for k, m in modules.items()},
            "optimizers": {k: o.state_dict() for k, o in optimizers.items()},
            "norm": norm, "rng": rng_states(env), "extra": extra or {}}
+    refuse_unsound(doc, FINITE_ENTRIES, path)
     if replay is not None:
         doc["replay"] = replay_state(replay)
     return atomic_save(seal(doc), path)
@@ -145,12 +172,64 @@ def load_checkpoint(path: str | Path, map_location: str | torch.device = "cpu") 
     layout = {"algorithm": str, "config": dict, "counters": dict, "modules": dict, "optimizers": dict,
               "norm": dict, "rng": dict}
     bad = [key for key, kind in layout.items() if not isinstance(doc.get(key), kind)]
-    counters = doc.get("counters") or {}
-    if bad or set(counters) != {f.name for f in fields(Counters)} or not all(
-            type(v) in (int, float) for v in counters.values()) or not isinstance(
-            doc["rng"].get("torch"), torch.Tensor):
-        raise FileFormatError(path, f"incomplete training checkpoint ({', '.join(bad) or 'counters, rng'})")
+    bad += [key for key in ("extra", "replay") if key in doc and not isinstance(doc[key], dict)]
+    if bad or not isinstance(doc["rng"].get("torch"), torch.Tensor):
+        raise FileFormatError(path, f"incomplete training checkpoint ({', '.join(bad) or 'rng'})")
+    problem = (counters_problem(doc["counters"]) or config_problem(doc["config"])
+               or value_problem(doc, FINITE_ENTRIES))
+    if problem is not None:
+        raise FileFormatError(path, problem)
     return doc
+
+
+def _shown(value: object, width: int = 40) -> str:
+    """``repr(value)``, cut to ``width`` characters."""
+    text = repr(value)
+    return text if len(text) <= width else text[: width - 3] + "..."
+
+
+def counters_problem(counters: dict) -> str | None:
+    """What is wrong with a checkpoint's ``counters`` (the fields of :class:`~.common.Counters`; see the
+    module docstring), None when nothing is."""
+    names = [f.name for f in fields(Counters)]
+    missing, unknown = [n for n in names if n not in counters], [k for k in counters if k not in names]
+    if missing or unknown:
+        return f"counters lack {missing}" if missing else f"counters hold unknown entries {unknown}"
+    for f in fields(Counters):
+        value = counters[f.name]
+        if isinstance(f.default, float):
+            if type(value) not in (int, float) or not math.isfinite(value) or value < 0:
+                return f"counters.{f.name} must be a finite non-negative number, got {_shown(value)}"
+        elif type(value) is not int or not 0 <= value <= MAX_COUNT:
+            return f"counters.{f.name} must be a non-negative integer (at most 2**63 - 1), got " \
+                   f"{_shown(value)}"
+    for name in ("last_checkpoint_frames", "last_eval_frames"):
+        if counters[name] > counters["frames"]:
+            return f"counters.{name} must be at most counters.frames ({counters['frames']}), got " \
+                   f"{counters[name]}"
+    return None
+
+
+def config_problem(config: dict) -> str | None:
+    """The first entry of a checkpoint's ``config`` that is not a plain value (None, bool, number,
+    string, or a list / dict of them with string keys), None when there is none."""
+    return next(_unplain(config, "config"), None)
+
+
+def _unplain(value: object, name: str) -> Iterator[str]:
+    """What is wrong with each entry of ``value`` (named ``name``) that is not a plain value."""
+    if isinstance(value, dict):
+        for key, item in value.items():
+            if isinstance(key, str):
+                yield from _unplain(item, f"{name}.{key}")
+            else:
+                yield f"{name} keys must be strings, got {_shown(key)}"
+    elif isinstance(value, (list, tuple)):
+        for i, item in enumerate(value):
+            yield from _unplain(item, f"{name}[{i}]")
+    elif value is not None and type(value) not in (bool, int, float, str):
+        yield f"{name} must be a plain value (None, bool, number, string, list or dict), got a " \
+              f"{type(value).__name__}"
 
 
 def _plain(value):
@@ -268,5 +347,6 @@ def _batched(data: dict, size: int) -> bool:
                and v.shape[0] == size for v in data.values())
 
 
-__all__ = ["FORMAT", "IDENTITY_FIELDS", "LEGACY_FORMATS", "atomic_save", "check_resumable", "load_checkpoint",
-           "load_replay", "replay_state", "restore", "rng_states", "save_checkpoint", "set_rng_states"]
+__all__ = ["FINITE_ENTRIES", "FORMAT", "IDENTITY_FIELDS", "LEGACY_FORMATS", "MAX_COUNT", "atomic_save",
+           "check_resumable", "config_problem", "counters_problem", "load_checkpoint", "load_replay",
+           "replay_state", "restore", "rng_states", "save_checkpoint", "set_rng_states"]
