@@ -18,12 +18,19 @@ Not checked against a running Tacview (the handshake follows the public referenc
 exporters). The server binds to 127.0.0.1 unless told otherwise; :meth:`send_frame` never blocks
 waiting for a client (it polls for connections and handshakes without blocking; a client that cannot
 take a frame within ``send_timeout`` seconds is dropped).
+
+Connections cannot pile up: one that has not completed its handshake ``handshake_timeout`` seconds
+(:data:`DEFAULT_HANDSHAKE_TIMEOUT`, 5 s) after it was accepted is closed, and at most ``max_clients``
+connections (:data:`DEFAULT_MAX_CLIENTS`, 8; handshaking ones included) are held: a connection beyond
+that is closed as soon as it is accepted. Both are enforced when :meth:`poll` runs (every
+:meth:`send_frame` calls it), so an idle or silent peer delays a real client by at most
+``handshake_timeout``.
 """
 
 from __future__ import annotations
 
-import select
 import socket
+import time
 import zlib
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -38,7 +45,15 @@ from ..viz.geodesy import DEFAULT_REFERENCE, ReferencePoint, euler_to_local_leve
 DEFAULT_PORT = 42674
 #: The first two lines of either side's handshake.
 HANDSHAKE_LINES = ("XtraLib.Stream.0", "Tacview.RealTimeTelemetry.0")
+#: Seconds a connection may take to complete its handshake before it is closed.
+DEFAULT_HANDSHAKE_TIMEOUT = 5.0
+#: Most connections held at once (handshaking or receiving frames); more are closed when accepted.
+DEFAULT_MAX_CLIENTS = 8
 _MAX_HANDSHAKE = 4096
+#: Most connections one :meth:`TacviewServer.poll` accepts (the rest wait for the next poll).
+_MAX_ACCEPTS_PER_POLL = 64
+#: Connections the kernel queues between two polls.
+_LISTEN_BACKLOG = 64
 
 
 def _crc64_we(data: bytes) -> int:
@@ -75,6 +90,7 @@ def client_handshake(client_name: str, password: str = "") -> bytes:
 class _Client:
     sock: socket.socket
     address: tuple
+    deadline: float
     received: bytes = b""
     ready: bool = False
     name: str = ""
@@ -85,12 +101,15 @@ class TacviewServer:
     """A real-time telemetry host for ``num_envs`` aircraft; Tacview connects to ``host:port``.
 
     ``port=0`` picks a free port (read :attr:`port`). ``names``/``colors`` [E] label the aircraft.
-    Use as a context manager or call :meth:`close`."""
+    ``handshake_timeout`` (s) and ``max_clients`` bound the connections held (see the module
+    docstring). Use as a context manager or call :meth:`close`."""
 
     def __init__(self, host: str = "127.0.0.1", port: int = DEFAULT_PORT, *, num_envs: int = 1,
                  reference: ReferencePoint | None = None, names: Sequence[str] | None = None,
                  colors: Sequence[str] | None = None, host_name: str = "falcon-rl", password: str = "",
-                 reference_time: datetime | None = None, send_timeout: float = 1.0) -> None:
+                 reference_time: datetime | None = None, send_timeout: float = 1.0,
+                 handshake_timeout: float = DEFAULT_HANDSHAKE_TIMEOUT,
+                 max_clients: int = DEFAULT_MAX_CLIENTS) -> None:
         if not isinstance(port, int) or isinstance(port, bool) or not 0 <= port <= 65535:
             raise ValueError(f"port must be an int in [0, 65535], got {port!r}")
         if not isinstance(num_envs, int) or num_envs < 1:
@@ -99,6 +118,11 @@ class TacviewServer:
             raise ValueError("host_name must not contain line breaks or NUL")
         if not send_timeout > 0:
             raise ValueError(f"send_timeout must be > 0 s, got {send_timeout}")
+        if not 0 < handshake_timeout < float("inf"):
+            raise ValueError(f"handshake_timeout must be a finite number of seconds > 0, "
+                             f"got {handshake_timeout}")
+        if not isinstance(max_clients, int) or isinstance(max_clients, bool) or max_clients < 1:
+            raise ValueError(f"max_clients must be a positive int, got {max_clients!r}")
         self.num_envs = num_envs
         self.reference = reference or DEFAULT_REFERENCE
         self.names = ([str(n) for n in names] if names is not None
@@ -110,6 +134,8 @@ class TacviewServer:
         self.host_name = host_name
         self.reference_time = reference_time
         self.send_timeout = float(send_timeout)
+        self.handshake_timeout = float(handshake_timeout)
+        self.max_clients = max_clients
         self._hashes = password_hashes(password)
         self._clients: list[_Client] = []
         self._listener = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
@@ -119,7 +145,7 @@ class TacviewServer:
         except OSError as error:
             self._listener.close()
             raise ValueError(f"cannot listen on {host}:{port} ({error.strerror or error})") from None
-        self._listener.listen(4)
+        self._listener.listen(_LISTEN_BACKLOG)
         self._listener.setblocking(False)
         self.host, self.port = self._listener.getsockname()[:2]
 
@@ -129,35 +155,49 @@ class TacviewServer:
         """Clients past the handshake (receiving frames)."""
         return sum(c.ready for c in self._clients)
 
+    @property
+    def num_connections(self) -> int:
+        """Connections held: clients past the handshake and those still handshaking."""
+        return len(self._clients)
+
     def poll(self) -> None:
-        """Accept pending connections and advance handshakes; never blocks."""
-        while True:
+        """Accept pending connections (closing those beyond ``max_clients``), close handshakes older
+        than ``handshake_timeout`` and advance the others; never blocks."""
+        for _ in range(_MAX_ACCEPTS_PER_POLL):
             try:
                 sock, address = self._listener.accept()
-            except (BlockingIOError, InterruptedError):
+            except OSError:  # none pending, or out of file descriptors: the handshakes still advance
                 break
-            except OSError:
-                return
-            sock.setblocking(False)
-            client = _Client(sock, address)
-            try:
-                sock.sendall(host_handshake(self.host_name))
-            except OSError:
-                sock.close()
-                continue
-            self._clients.append(client)
+            self._admit(sock, address)
+        now = time.monotonic()
         for client in [c for c in self._clients if not c.ready]:
-            self._advance_handshake(client)
+            if now > client.deadline:
+                self._drop(client)
+            else:
+                self._advance_handshake(client)
+
+    def _admit(self, sock: socket.socket, address: tuple) -> None:
+        """Greet a new connection, or close it at once when ``max_clients`` are held."""
+        if len(self._clients) >= self.max_clients:
+            sock.close()
+            return
+        sock.setblocking(False)
+        try:
+            sock.sendall(host_handshake(self.host_name))
+        except OSError:
+            sock.close()
+            return
+        self._clients.append(_Client(sock, address, time.monotonic() + self.handshake_timeout))
 
     def _advance_handshake(self, client: _Client) -> None:
         try:
-            while select.select([client.sock], [], [], 0)[0]:
+            while b"\0" not in client.received and len(client.received) <= _MAX_HANDSHAKE:
                 chunk = client.sock.recv(1024)
                 if not chunk:
                     return self._drop(client)
                 client.received += chunk
-                if b"\0" in client.received or len(client.received) > _MAX_HANDSHAKE:
-                    break
+        except (BlockingIOError, InterruptedError):
+            pass
         except OSError:
             return self._drop(client)
         if b"\0" not in client.received:
@@ -244,5 +284,5 @@ class TacviewServer:
         self.close()
 
 
-__all__ = ["DEFAULT_PORT", "HANDSHAKE_LINES", "TacviewServer", "client_handshake", "host_handshake",
-           "password_hashes"]
+__all__ = ["DEFAULT_HANDSHAKE_TIMEOUT", "DEFAULT_MAX_CLIENTS", "DEFAULT_PORT", "HANDSHAKE_LINES",
+           "TacviewServer", "client_handshake", "host_handshake", "password_hashes"]

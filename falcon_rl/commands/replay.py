@@ -5,8 +5,11 @@
 
 Reads a recording (``falcon-rl fly --record``, the ``FlightRecorder`` transform or the Gymnasium
 ``RecordFlight`` wrappers) and writes the same outputs as ``fly``: time-domain panels, a 3D animation,
-a Tacview file, a live FlightGear stream. A file that is not a recording exits 2 with one line naming
-it and what is wrong.
+a Tacview file, a live FlightGear stream. A file that is not a recording, or one that breaks its
+schema, exits 2 with one line naming the file, the field and the constraint, before anything is
+written: the arrays' headers are checked before any data is read (dtypes, shapes consistent with
+``time``, at most ``MAX_RECORDING_BYTES``, 2 GiB, of arrays), then the metadata field by field (see
+:mod:`falcon_rl.recording`).
 """
 
 from __future__ import annotations

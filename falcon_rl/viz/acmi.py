@@ -30,21 +30,31 @@ Numbers are written with 1e-9 deg (0.1 mm) in position, 1 mm in altitude and 1e-
 Besides ``T`` it writes, where recorded, ``TAS`` (m/s, the recorded airspeed), ``IAS`` (m/s, the
 equivalent airspeed in the ISA atmosphere, equal to the indicated airspeed at these low speeds),
 ``AOA`` and ``AOS`` (deg), ``AGL`` (m, the CG height above the ground) and ``Throttle`` (0..1, mean
-over motors).
+over motors). Files are written whole or not at all (:func:`falcon_rl.atomic_files.write_atomic`).
+
+:func:`read_acmi` streams the file line by line and keeps, per object, only the values its lines set
+and the frames where it is alive, so that time and memory grow with the file, not with objects x
+frames; the per-frame arrays of an :class:`AcmiTrack` are built when first asked for. A malformed
+file is an :class:`AcmiParseError` (a ValueError) of one line naming the file and the line.
 """
 
 from __future__ import annotations
 
-import io
+import codecs
 import math
 import zipfile
-from collections.abc import Mapping, Sequence
+import zlib
+from array import array
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
+from functools import cached_property
 from pathlib import Path
+from typing import IO
 
 import numpy as np
 
+from ..atomic_files import serialized, write_atomic
 from ..constants import G0, LAPSE, R_AIR, T0
 from ..recording import Recording, quaternion_euler
 from .geodesy import DEFAULT_REFERENCE, ReferencePoint, euler_to_local_level, ned_to_geodetic
@@ -241,34 +251,168 @@ def write_acmi(rec: Recording, path: str | Path, reference: ReferencePoint | Non
             if line is not None:
                 lines.append(line)
     text = "\n".join(lines) + "\n"
-    path.parent.mkdir(parents=True, exist_ok=True)
     if path.name.endswith(".zip.acmi"):
         member = path.name[: -len(".zip.acmi")] + ".txt.acmi"
-        with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED) as archive:
-            archive.writestr(member, text.encode("utf-8"))
-    else:
-        path.write_text(text, encoding="utf-8")
-    return path
+        return write_atomic(path, serialized(lambda stream: _zip_one(stream, member, text)))
+    return write_atomic(path, text)
+
+
+def _zip_one(stream: IO[bytes], member: str, text: str) -> None:
+    """Write a zip archive holding ``text`` as the one file ``member`` to ``stream``."""
+    with zipfile.ZipFile(stream, "w", compression=zipfile.ZIP_DEFLATED) as archive:
+        archive.writestr(member, text.encode("utf-8"))
 
 
 # ------------------------------------------------------------------------------------------- reading
-@dataclass
-class AcmiTrack:
-    """One object of a parsed file: its last text ``properties`` and, at every frame from its first
-    appearance to its removal, ``time`` [K] s, absolute ``longitude``/``latitude`` [K] deg, ``altitude``
-    [K] m, ``roll``/``pitch``/``yaw`` [K] deg and the numeric properties ``values`` {name: [K]} (NaN
-    before a property's first value)."""
+#: The ``T=`` component names of each form (by number of components).
+_COORD_LAYOUT = {3: ("lon", "lat", "alt"), 5: ("lon", "lat", "alt", "u", "v"),
+                 6: ("lon", "lat", "alt", "roll", "pitch", "yaw"),
+                 9: ("lon", "lat", "alt", "roll", "pitch", "yaw", "u", "v", "heading")}
+#: The ``T=`` components an :class:`AcmiTrack` keeps, in order.
+_TRACK_COORDS = ("lon", "lat", "alt", "roll", "pitch", "yaw")
+#: Global properties that must be numbers.
+_NUMERIC_HEADER = ("ReferenceLongitude", "ReferenceLatitude")
 
-    object_id: str
-    properties: dict[str, str] = field(default_factory=dict)
-    time: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    longitude: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    latitude: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    altitude: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    roll: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    pitch: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    yaw: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    values: dict[str, np.ndarray] = field(default_factory=dict)
+
+class AcmiParseError(ValueError):
+    """A file that breaks the ACMI format; the one-line message names the file and the line."""
+
+
+class _Steps:
+    """A piecewise-constant series of ``width`` values, set at frame indices (the last set in a frame
+    wins) and kept in between: storage proportional to the number of sets, not of frames."""
+
+    def __init__(self, width: int) -> None:
+        self.width = width
+        self.frames = array("q")
+        self.values = array("d")
+
+    def set(self, frame: int, values: Sequence[float]) -> None:
+        if self.frames and self.frames[-1] == frame:
+            self.values[-self.width:] = array("d", values)
+        else:
+            self.frames.append(frame)
+            self.values.extend(values)
+
+    def at(self, frames: np.ndarray) -> np.ndarray:
+        """The values [K, width] at the frame indices ``frames`` [K] (NaN before the first set)."""
+        known = np.array(self.frames, dtype=np.int64)
+        values = np.array(self.values, dtype=np.float64).reshape(-1, self.width)
+        index = np.searchsorted(known, frames, side="right") - 1
+        out = np.full((len(frames), self.width), math.nan)
+        out[index >= 0] = values[index[index >= 0]]
+        return out
+
+
+@dataclass
+class _ObjectState:
+    """What the reader knows of one object: the frame spans [start, end) where it is alive (end None:
+    still alive), its coordinates and numeric properties where lines set them, its last text
+    properties and the last value of each coordinate."""
+
+    alive: list[list[int | None]] = field(default_factory=list)
+    coords: _Steps = field(default_factory=lambda: _Steps(len(_TRACK_COORDS)))
+    numeric: dict[str, _Steps] = field(default_factory=dict)
+    text: dict[str, str] = field(default_factory=dict)
+    last: list[float] = field(default_factory=lambda: [math.nan] * len(_TRACK_COORDS))
+
+    def appear(self, frame: int) -> None:
+        """Alive from ``frame`` on (a span ended in this very frame is reopened)."""
+        if self.alive and self.alive[-1][1] is None:
+            return
+        if self.alive and self.alive[-1][1] == frame:
+            self.alive[-1][1] = None
+        else:
+            self.alive.append([frame, None])
+
+    def remove(self, frame: int) -> None:
+        """Removed in ``frame`` (not alive at its end); an empty span is dropped."""
+        if self.alive and self.alive[-1][1] is None:
+            if self.alive[-1][0] == frame:
+                self.alive.pop()
+            else:
+                self.alive[-1][1] = frame
+
+    def spans(self, num_frames: int) -> list[tuple[int, int]]:
+        """The spans [start, end) of a file of ``num_frames`` frames."""
+        return [(int(start), num_frames if end is None else int(end)) for start, end in self.alive]
+
+
+class AcmiTrack:
+    """One object of a parsed file: ``object_id`` (hex, lowercase), its last text ``properties`` and,
+    at every frame from its first appearance to its removal (again from a reappearance), ``time`` [K]
+    s, absolute ``longitude``/``latitude`` [K] deg, ``altitude`` [K] m, ``roll``/``pitch``/``yaw`` [K]
+    deg and the numeric properties ``values`` {name: [K]} (NaN before a property's first value or
+    after a non-numeric one).
+
+    The parser stores only what the file holds (each value where a line sets it, and the frames the
+    object is alive); these per-frame arrays are built on first access."""
+
+    def __init__(self, object_id: str, properties: dict[str, str], frame_times: np.ndarray,
+                 alive: Sequence[tuple[int, int]], coords: _Steps, numeric: Mapping[str, _Steps],
+                 reference: tuple[float, float]) -> None:
+        self.object_id = object_id
+        self.properties = properties
+        self._frame_times = frame_times
+        self._alive = list(alive)
+        self._coords = coords
+        self._numeric = dict(numeric)
+        self._reference = reference
+
+    @cached_property
+    def frame_index(self) -> np.ndarray:
+        """Indices [K] into :attr:`AcmiFile.frames` of the frames where the object is alive."""
+        spans = [np.arange(start, end, dtype=np.int64) for start, end in self._alive]
+        return np.concatenate(spans) if spans else np.zeros(0, np.int64)
+
+    @property
+    def num_frames(self) -> int:
+        """K, the frames where the object is alive (without building them)."""
+        return sum(end - start for start, end in self._alive)
+
+    @cached_property
+    def time(self) -> np.ndarray:
+        """[K] s."""
+        return self._frame_times[self.frame_index]
+
+    @cached_property
+    def _coordinates(self) -> np.ndarray:
+        return self._coords.at(self.frame_index)
+
+    @property
+    def longitude(self) -> np.ndarray:
+        """[K] deg, absolute."""
+        return self._coordinates[:, 0] + self._reference[0]
+
+    @property
+    def latitude(self) -> np.ndarray:
+        """[K] deg, absolute."""
+        return self._coordinates[:, 1] + self._reference[1]
+
+    @property
+    def altitude(self) -> np.ndarray:
+        """[K] m."""
+        return self._coordinates[:, 2]
+
+    @property
+    def roll(self) -> np.ndarray:
+        """[K] deg."""
+        return self._coordinates[:, 3]
+
+    @property
+    def pitch(self) -> np.ndarray:
+        """[K] deg."""
+        return self._coordinates[:, 4]
+
+    @property
+    def yaw(self) -> np.ndarray:
+        """[K] deg."""
+        return self._coordinates[:, 5]
+
+    @cached_property
+    def values(self) -> dict[str, np.ndarray]:
+        """The numeric properties {name: [K]}."""
+        return {name: steps.at(self.frame_index)[:, 0] for name, steps in sorted(self._numeric.items())}
 
 
 @dataclass
@@ -282,6 +426,10 @@ class AcmiFile:
 
 
 def _split_unescaped(text: str, separator: str) -> list[str]:
+    """``text`` split at the separators not escaped by a backslash, escapes of the separator and of
+    the backslash removed."""
+    if "\\" not in text:
+        return text.split(separator)
     parts, current, escaped = [], [], False
     for char in text:
         if escaped:
@@ -300,131 +448,179 @@ def _split_unescaped(text: str, separator: str) -> list[str]:
     return parts
 
 
-def _logical_lines(text: str) -> list[str]:
-    """Physical lines joined where a line ends in an odd number of backslashes (a continued value)."""
-    out: list[str] = []
+def _logical_lines(lines: Iterable[str]) -> Iterator[tuple[int, str]]:
+    """(number of its first physical line, text) of each logical line of the physical ``lines``
+    (line breaks removed): lines are joined where one ends in an odd number of backslashes."""
     pending: str | None = None
-    for raw in text.splitlines():
-        line = raw if pending is None else pending + "\n" + raw
-        trailing = len(raw) - len(raw.rstrip("\\"))
-        if trailing % 2 == 1:
+    start = 0
+    for number, raw in enumerate(lines, start=1):
+        if pending is None:
+            start, line = number, raw
+        else:
+            line = pending + "\n" + raw
+        if (len(raw) - len(raw.rstrip("\\"))) % 2 == 1:
             pending = line[:-1]
             continue
         pending = None
-        out.append(line)
+        yield start, line
     if pending is not None:
-        out.append(pending)
-    return out
+        yield start, pending
 
 
-_COORD_LAYOUT = {3: ("lon", "lat", "alt"), 5: ("lon", "lat", "alt", "u", "v"),
-                 6: ("lon", "lat", "alt", "roll", "pitch", "yaw"),
-                 9: ("lon", "lat", "alt", "roll", "pitch", "yaw", "u", "v", "heading")}
+class _AcmiReader:
+    """Parses ACMI lines one at a time into per-object sparse series (memory and time linear in what
+    the file holds); :meth:`result` builds the :class:`AcmiFile`."""
 
+    def __init__(self, source: str) -> None:
+        self.source = source
+        self.header: dict[str, str] = {}
+        self.frames: list[float] = []
+        self.objects: dict[str, _ObjectState] = {}
 
-def _read_text(path: Path) -> str:
-    data = path.read_bytes()
-    if data[:2] == b"PK":
-        with zipfile.ZipFile(io.BytesIO(data)) as archive:
-            members = [m for m in archive.namelist() if not m.endswith("/")]
-            if len(members) != 1:
-                raise ValueError(f"{path}: a .zip.acmi archive must hold one file, found {len(members)}")
-            data = archive.read(members[0])
-    return data.decode("utf-8-sig")
+    def fail(self, number: int, what: str) -> AcmiParseError:
+        return AcmiParseError(f"{self.source}, line {number}: {what}")
 
+    def read(self, lines: Iterable[tuple[int, str]]) -> AcmiFile:
+        lines = iter(lines)
+        for key in ("FileType", "FileVersion"):
+            number, line = next(lines, (len(self.header) + 1, ""))
+            if not line.startswith(key + "="):
+                raise self.fail(number, "not an ACMI file: the first lines must be FileType= and "
+                                        "FileVersion=")
+            self.header[key] = line.split("=", 1)[1]
+        for number, line in lines:
+            self.line(number, line)
+        return self.result()
 
-def parse_acmi(text: str) -> AcmiFile:
-    """Parse ACMI 2.x text (see :func:`read_acmi`)."""
-    lines = _logical_lines(text.lstrip("\ufeff"))
-    if len(lines) < 2 or not lines[0].startswith("FileType=") or not lines[1].startswith("FileVersion="):
-        raise ValueError("not an ACMI file: the first lines must be FileType= and FileVersion=")
-    header = dict(line.split("=", 1) for line in lines[:2])
-    objects: dict[str, dict] = {}
-    alive: set[str] = set()
-    frames: list[float] = []
-    current = 0.0
+    @property
+    def frame(self) -> int:
+        """Index of the frame the lines now read belong to (lines before the first ``#`` go to frame 0)."""
+        return max(len(self.frames) - 1, 0)
 
-    def snapshot() -> None:
-        for oid in alive:
-            state = objects[oid]
-            state["rows"].append((current, *(state["coord"][k] for k in
-                                             ("lon", "lat", "alt", "roll", "pitch", "yaw")),
-                                  dict(state["numeric"])))
-
-    started = False
-    for number, line in enumerate(lines[2:], start=3):
+    def line(self, number: int, line: str) -> None:
         if not line.strip() or line.startswith("//"):
-            continue
+            return
         if line.startswith("#"):
-            if started:
-                snapshot()
-            started = True
-            try:
-                current = float(line[1:])
-            except ValueError:
-                raise ValueError(f"line {number}: bad frame time {line!r}") from None
-            frames.append(current)
-            continue
-        if line.startswith("-"):
-            alive.discard(line[1:].strip().lower())
-            continue
-        fields = _split_unescaped(line, ",")
-        oid = fields[0].strip().lower()
-        properties = [f.split("=", 1) for f in fields[1:] if "=" in f]
+            self.frames.append(self.number(number, "frame time", line[1:]))
+        elif line.startswith("-"):
+            state = self.objects.get(line[1:].strip().lower())
+            if state is not None:
+                state.remove(self.frame)
+        else:
+            fields = _split_unescaped(line, ",")
+            pairs = [item.split("=", 1) for item in fields[1:] if "=" in item]
+            self.properties(number, fields[0].strip().lower(), pairs)
+
+    def number(self, number: int, what: str, text: str) -> float:
+        try:
+            return float(text)
+        except ValueError:
+            raise self.fail(number, f"bad {what} {text[:40]!r} (expected a number)") from None
+
+    def properties(self, number: int, oid: str, properties: list[list[str]]) -> None:
         if oid == "0":
-            header.update({k: v for k, v in properties})
-            continue
+            for key, value in properties:
+                if key in _NUMERIC_HEADER:
+                    self.number(number, key, value)
+                self.header[key] = value
+            return
         try:
             int(oid, 16)
         except ValueError:
-            raise ValueError(f"line {number}: bad object id {fields[0]!r}") from None
-        state = objects.setdefault(oid, {"coord": dict.fromkeys(("lon", "lat", "alt", "roll", "pitch",
-                                                                  "yaw"), math.nan),
-                                         "text": {}, "numeric": {}, "rows": []})
-        alive.add(oid)
+            raise self.fail(number, f"bad object id {oid[:40]!r} (expected hexadecimal)") from None
+        state = self.objects.setdefault(oid, _ObjectState())
+        state.appear(self.frame)
         for key, value in properties:
             if key == "T":
-                components = value.split("|")
-                layout = _COORD_LAYOUT.get(len(components))
-                if layout is None:
-                    raise ValueError(f"line {number}: T has {len(components)} components, "
-                                     "expected 3, 5, 6 or 9")
-                for name, component in zip(layout, components, strict=True):
-                    if component.strip() and name in state["coord"]:
-                        state["coord"][name] = float(component)
-                continue
-            state["text"][key] = value
-            try:
-                state["numeric"][key] = float(value)
-            except ValueError:
-                state["numeric"].pop(key, None)
-    if started:
-        snapshot()
-    ref_lon = float(header.get("ReferenceLongitude", 0.0))
-    ref_lat = float(header.get("ReferenceLatitude", 0.0))
-    tracks: dict[str, AcmiTrack] = {}
-    for oid, state in objects.items():
-        rows = state["rows"]
-        columns = [np.array([row[i] for row in rows], dtype=np.float64) for i in range(7)]
-        keys = sorted({k for row in rows for k in row[7]})
-        values = {k: np.array([row[7].get(k, math.nan) for row in rows]) for k in keys}
-        tracks[oid] = AcmiTrack(oid, dict(state["text"]), columns[0], columns[1] + ref_lon,
-                                columns[2] + ref_lat, columns[3], columns[4], columns[5], columns[6], values)
-    return AcmiFile(header, np.asarray(frames, dtype=np.float64), tracks)
+                self.coordinates(number, state, value)
+            else:
+                self.property(state, key, value)
+
+    def coordinates(self, number: int, state: _ObjectState, value: str) -> None:
+        components = value.split("|")
+        layout = _COORD_LAYOUT.get(len(components))
+        if layout is None:
+            raise self.fail(number, f"T has {len(components)} components, expected 3, 5, 6 or 9")
+        for name, component in zip(layout, components, strict=True):
+            if component.strip():
+                parsed = self.number(number, f"T component {name}", component)
+                if name in _TRACK_COORDS:
+                    state.last[_TRACK_COORDS.index(name)] = parsed
+        state.coords.set(self.frame, state.last)
+
+    def property(self, state: _ObjectState, key: str, value: str) -> None:
+        state.text[key] = value
+        try:
+            parsed = float(value)
+        except ValueError:
+            parsed = None
+        numeric = state.numeric
+        if parsed is not None:
+            numeric.setdefault(key, _Steps(1)).set(self.frame, (parsed,))
+        elif key in numeric:
+            numeric[key].set(self.frame, (math.nan,))
+
+    def result(self) -> AcmiFile:
+        frames = np.asarray(self.frames, dtype=np.float64)
+        reference = (float(self.header.get("ReferenceLongitude", 0.0)),
+                     float(self.header.get("ReferenceLatitude", 0.0)))
+        tracks = {oid: AcmiTrack(oid, state.text, frames, state.spans(len(frames)), state.coords,
+                                 state.numeric, reference)
+                  for oid, state in self.objects.items()}
+        return AcmiFile(self.header, frames, tracks)
+
+
+def _physical_lines(stream: IO[bytes], source: str) -> Iterator[str]:
+    """The decoded lines of a binary stream (UTF-8, a leading BOM dropped, ``\\n`` or ``\\r\\n``
+    breaks removed); an undecodable line is an :class:`AcmiParseError` naming it."""
+    for number, raw in enumerate(stream, start=1):
+        if number == 1 and raw.startswith(codecs.BOM_UTF8):
+            raw = raw[len(codecs.BOM_UTF8):]
+        try:
+            line = raw.decode("utf-8")
+        except UnicodeDecodeError as error:
+            raise AcmiParseError(f"{source}, line {number}: not UTF-8 text ({error.reason} at byte "
+                                 f"{error.start})") from None
+        yield line[:-1].removesuffix("\r") if line.endswith("\n") else line.removesuffix("\r")
+
+
+def parse_acmi(text: str, source: str = "<text>") -> AcmiFile:
+    """Parse ACMI 2.x text (see :func:`read_acmi`); errors name ``source`` and the line."""
+    reader = _AcmiReader(source)
+    lines = (line.removesuffix("\r") for line in text.removeprefix("\ufeff").split("\n"))
+    return reader.read(_logical_lines(lines))
 
 
 def read_acmi(path: str | Path) -> AcmiFile:
-    """Parse a text (``.txt.acmi``/``.acmi``) or zipped (``.zip.acmi``) ACMI 2.x file.
+    """Parse a text (``.txt.acmi``/``.acmi``) or zipped (``.zip.acmi``) ACMI 2.x file, streaming: time
+    and memory grow with what the file holds (values are stored where lines set them, see
+    :class:`AcmiTrack`), not with objects x frames.
 
     Handles escaped commas, continued lines, removed objects (``-id``), the 3, 5, 6 and 9 component
     forms of ``T=`` and empty components (the previous value is kept). Longitudes and latitudes are
-    returned absolute (``ReferenceLongitude``/``ReferenceLatitude`` added)."""
+    returned absolute (``ReferenceLongitude``/``ReferenceLatitude`` added). A file that breaks the
+    format raises :class:`AcmiParseError` (a ValueError) of one line naming the file and the line; a
+    zip archive that is damaged or does not hold exactly one file, a ValueError naming the file."""
     path = Path(path)
     if not path.is_file():
         raise ValueError(f"{path}: no such file")
-    return parse_acmi(_read_text(path))
+    with path.open("rb") as stream:
+        if stream.read(2) != b"PK":
+            stream.seek(0)
+            return _AcmiReader(str(path)).read(_logical_lines(_physical_lines(stream, str(path))))
+    try:
+        with zipfile.ZipFile(path) as archive:
+            members = [m for m in archive.infolist() if not m.is_dir()]
+            if len(members) != 1:
+                raise ValueError(f"{path}: a .zip.acmi archive must hold one file, found {len(members)}")
+            with archive.open(members[0]) as stream:
+                source = f"{path}[{members[0].filename}]"
+                return _AcmiReader(source).read(_logical_lines(_physical_lines(stream, source)))
+    except (zipfile.BadZipFile, zlib.error, EOFError, NotImplementedError, RuntimeError) as error:
+        raise ValueError(f"{path}: not a readable zip archive ({error})") from None
 
 
 __all__ = ["ACMI_COLORS", "ACMI_HEADER", "AIRCRAFT_TYPE", "FIRST_OBJECT_ID", "AcmiFile", "AcmiObjectEncoder",
-           "AcmiTrack", "acmi_header", "escape_text", "format_number", "format_reference_time",
-           "isa_density_ratio", "parse_acmi", "read_acmi", "recording_geodetic", "write_acmi"]
+           "AcmiParseError", "AcmiTrack", "acmi_header", "escape_text", "format_number",
+           "format_reference_time", "isa_density_ratio", "parse_acmi", "read_acmi", "recording_geodetic",
+           "write_acmi"]
