@@ -103,7 +103,7 @@ def test_eval_flies_on_the_torch_threads_it_is_given(capsys, tmp_path):
     try:
         for argv, threads in (([], 1), (["--threads", "2"], 2)):
             code, _, _ = run_json(capsys, "eval", "--controller", "trim", "--episodes", "1",
-                                  "--seconds", "0.1", "--out", str(tmp_path), *argv)
+                                  "--seconds", "0.1", "--out", str(tmp_path / str(threads)), *argv)
             assert code == 0 and torch.get_num_threads() == threads
     finally:
         torch.set_num_threads(before)

@@ -8,21 +8,31 @@
 3. The flight seen: the LQR flying the attitude task's circle maneuver, as a 3D animation (GIF), a
    Tacview file (ACMI) and the time-domain panels.
 
-Everything goes to ``runs/demo`` (report.md, results.json, PNGs). On a 2-core CPU the default run
-takes a few minutes; MPPI dominates, hence its small episode count.
+Everything goes to ``runs/demo`` (report.md, results.json, PNGs, GIF, ACMI, demo.log). On a 2-core CPU
+the default run takes a few minutes; MPPI dominates, hence its small episode count.
+
+Progress (:class:`StageLog`): one line per stage, ``demo [  12.3 s] altitude protocol: LQR, 100
+episodes`` (seconds since the start), kept in ``demo.log`` in the output folder and printed on stderr
+when stderr is not a terminal (a pipe, a log file); on a terminal a bar over the stages shows the
+current one, above the stages' own step bars.
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
+import time
 from pathlib import Path
+from typing import TextIO
 
+from ..atomic_files import write_atomic
 from ._common import (
     bounded_int,
     comma_list,
     emit,
     inside,
     nonnegative_int,
+    one_line,
     output_dir,
     positive_int,
     use_threads,
@@ -31,10 +41,65 @@ from ._common import (
 NAME = "demo"
 HELP = "run the main job: shipped PPO vs LQR vs MPPI on the altitude protocol, trims, ground effect"
 CONTROLLERS = ("ppo", "lqr", "mppi", "trim")
+#: The progress log the demo keeps in its output folder (one line per stage).
+LOG_NAME = "demo.log"
+
+
+class StageLog:
+    """Progress of a job made of stages: one line per stage, ``NAME [ELAPSED s] STAGE``, kept in ``path``
+    (rewritten whole at each stage, atomically) and printed on ``stream`` (default stderr) unless it is a
+    terminal, where a tqdm bar over the ``total`` stages names the current one instead. Used as a
+    context manager: a stage that raises is logged as failed (one line) before the error goes on."""
+
+    def __init__(self, name: str, path: Path, total: int, stream: TextIO | None = None) -> None:
+        from tqdm import tqdm
+
+        self.name, self.path = name, path
+        self.stream = sys.stderr if stream is None else stream
+        #: Whether the stream is a terminal: bars there (the stages' own ones too), lines elsewhere.
+        self.interactive = self.stream.isatty()
+        self.lines: list[str] = []
+        self.stages = 0
+        self.started = time.monotonic()
+        self.bar = tqdm(total=total, desc=name, unit="stage", file=self.stream, disable=not self.interactive,
+                        bar_format="{desc} [{n}/{total} stages, {elapsed}]")
+
+    def stage(self, text: str) -> None:
+        """Start the stage described by ``text`` (the previous one is done)."""
+        if self.stages:
+            self.bar.update(1)
+        self.stages += 1
+        self.bar.set_description_str(f"{self.name}: {text}")
+        self._line(text)
+
+    def note(self, text: str) -> None:
+        """A line that is no stage (a controller left out): logged, and printed on a terminal too."""
+        line = self._line(text)
+        if self.interactive:
+            self.bar.write(line, file=self.stream)
+
+    def _line(self, text: str) -> str:
+        """Log ``NAME [ELAPSED s] text`` (printed unless on a terminal); returns the line."""
+        line = f"{self.name} [{time.monotonic() - self.started:7.1f} s] {text}"
+        self.lines.append(line)
+        write_atomic(self.path, "\n".join(self.lines) + "\n")
+        if not self.interactive:
+            print(line, file=self.stream, flush=True)
+        return line
+
+    def __enter__(self) -> StageLog:
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, error: BaseException | None, trace: object) -> None:
+        self.bar.update(self.bar.total - self.bar.n)
+        self.bar.close()
+        self._line("done" if error is None else f"failed: {one_line(error)}")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--out", default="runs/demo", help="output folder")
+    parser.add_argument("--out", default="runs/demo",
+                        help=f"output folder (report.md, results.json, figures, GIF, ACMI and {LOG_NAME}, "
+                             "the progress: a line per stage, also on stderr when it is not a terminal)")
     parser.add_argument("--airframe", default="volantex_ranger", help="airframe of the altitude protocol")
     parser.add_argument("--controllers", default="ppo,lqr,mppi",
                         help=f"comma list of {', '.join(CONTROLLERS)} (default ppo,lqr,mppi)")
@@ -65,43 +130,58 @@ def training_config(args: argparse.Namespace, out: Path):
                            threads=args.threads, stop_when=ALTITUDE_SOLVED)
 
 
-def _protocol(args: argparse.Namespace, controllers: list[str], airframe: str, out: Path
+def _scored_controllers(args: argparse.Namespace, requested: list[str]) -> tuple[list[str], str | None]:
+    """(the controllers the demo scores, why PPO is left out or None): without ``--train``, PPO only where
+    a policy is shipped for the airframe."""
+    if "ppo" not in requested or args.train:
+        return requested, None
+    from ..policies import shipped_policy
+
+    try:
+        shipped_policy("altitude", args.airframe)
+    except ValueError as exc:  # no shipped policy for this airframe: score the baselines only
+        return [c for c in requested if c != "ppo"], f"skipping PPO ({one_line(exc)}); --train trains one"
+    return requested, None
+
+
+def _protocol(args: argparse.Namespace, controllers: list[str], airframe: str, out: Path, log: StageLog
               ) -> tuple[list, list[Path], dict]:
-    """Score the controllers on the altitude protocol; returns (results, figures, training summary)."""
-    from tqdm import tqdm
-
-    from ..evaluation.controllers import make_controller
-    from ..evaluation.protocols import altitude_protocol
-    from ..viz.evaluation import plot_altitude
-
+    """Score the controllers on the altitude protocol, a stage each (training PPO first with ``--train``);
+    returns (results, figures, training summary)."""
     training: dict = {}
     ppo_source = "ppo"
-    if "ppo" in controllers and not args.train:
-        from ..policies import shipped_policy
-
-        try:
-            shipped_policy("altitude", args.airframe)
-        except ValueError as exc:  # no shipped policy for this airframe: score the baselines only
-            tqdm.write(f"demo: skipping PPO ({exc}); use --train to train one here")
-            controllers.remove("ppo")
     if args.train and "ppo" in controllers:
         from ..recipes import ppo
 
+        log.stage(f"training PPO on {airframe} until it solves the altitude protocol's validation")
         training = ppo.train(training_config(args, out))
         ppo_source = training["policy"]
     results, figures = [], []
     for name in controllers:
         episodes = args.mppi_episodes if name == "mppi" else args.episodes
-        source = ppo_source if name == "ppo" else name
-        result = altitude_protocol(args.airframe, name.upper(), lambda env, s=source: make_controller(s, env),
-                                   episodes=episodes, seed=args.seed, backend=args.backend)
+        log.stage(f"altitude protocol: {name.upper()}, {episodes} episodes")
+        result, figure = _score(args, name, ppo_source if name == "ppo" else name, episodes, airframe, out)
         results.append(result)
-        figures.append(plot_altitude(result, inside(out, f"altitude_{airframe}_{name}.png", "figure name")))
+        figures.append(figure)
     return results, figures, training
 
 
-def _trims_and_ground_effect(out: Path) -> tuple[list[str], dict]:
-    """Trim at cruise and the ground-effect table of every shipped airframe: (report lines, document)."""
+def _score(args: argparse.Namespace, name: str, source: str, episodes: int, airframe: str, out: Path
+           ) -> tuple:
+    """One controller (``source``: a baseline name or a policy file) on the altitude protocol and its
+    figure: (ProtocolResult, PNG path)."""
+    from ..evaluation.controllers import make_controller
+    from ..evaluation.protocols import altitude_protocol
+    from ..viz.evaluation import plot_altitude
+
+    result = altitude_protocol(args.airframe, name.upper(), lambda env: make_controller(source, env),
+                               episodes=episodes, seed=args.seed, backend=args.backend)
+    return result, plot_altitude(result, inside(out, f"altitude_{airframe}_{name}.png", "figure name"))
+
+
+def _trims_and_ground_effect(out: Path, progress: bool) -> tuple[list[str], dict]:
+    """Trim at cruise and the ground-effect table of every shipped airframe (``progress``: a bar over
+    them): (report lines, document)."""
     from tqdm import tqdm
 
     from ..airframe import list_airframes, load_airframe
@@ -110,7 +190,8 @@ def _trims_and_ground_effect(out: Path) -> tuple[list[str], dict]:
     from ..viz.ground_effect import plot_ground_effect
 
     trims, tables = {}, {}
-    for name in tqdm(list_airframes(), desc="trim + ground-effect table", unit="airframe"):
+    for name in tqdm(list_airframes(), desc="trim + ground-effect table", unit="airframe", leave=False,
+                     disable=not progress):
         airframe = load_airframe(name)
         trims[name] = trim_level(airframe, airframe.envelope.cruise_speed, 100.0).row(0)
         tables[name] = ground_effect_table(airframe)
@@ -133,9 +214,9 @@ def _trims_and_ground_effect(out: Path) -> tuple[list[str], dict]:
 FLIGHT_SECONDS = 20.0
 
 
-def _seen_flight(args: argparse.Namespace, airframe: str, out: Path) -> tuple[list[str], dict]:
-    """Fly the circle with the LQR and write circle.gif, circle.acmi and the panels: (report lines,
-    document)."""
+def _seen_flight(args: argparse.Namespace, airframe: str, out: Path, log: StageLog) -> tuple[list[str], dict]:
+    """Fly the circle with the LQR, then write circle.gif, circle.acmi and the panels (a stage each):
+    (report lines, document)."""
     from ..viz.acmi import write_acmi
     from ..viz.animation import write_animation
     from ..viz.timeseries import plot_all
@@ -143,8 +224,11 @@ def _seen_flight(args: argparse.Namespace, airframe: str, out: Path) -> tuple[li
 
     flight = argparse.Namespace(task="attitude", controller="lqr", maneuver="circle", envs=1,
                                 seconds=FLIGHT_SECONDS, seed=args.seed, backend=args.backend, device="cpu")
-    recording, summary = fly(flight, airframe, {"maneuver": "circle"})
-    gif = write_animation(recording, out / "circle.gif", fps=10.0, width=360, height=270)
+    log.stage(f"the LQR on the circle maneuver: {FLIGHT_SECONDS:g} s flight")
+    recording, summary = fly(flight, airframe, {"maneuver": "circle"}, progress=log.interactive)
+    log.stage("the circle seen: GIF, Tacview file, panels")
+    gif = write_animation(recording, out / "circle.gif", fps=10.0, width=360, height=270,
+                          progress=None if log.interactive else False)
     acmi = write_acmi(recording, out / "circle.acmi")
     panels = plot_all(recording, out / "circle_panels")
     lines = ["## The flight seen: LQR on the circle maneuver", "",
@@ -158,29 +242,46 @@ def _seen_flight(args: argparse.Namespace, airframe: str, out: Path) -> tuple[li
 
 def run(args: argparse.Namespace) -> int:
     from ..airframe import load_airframe
-    from ..evaluation.report import result_document, write_report
+    from ..evaluation.report import result_document
 
-    controllers = comma_list(args.controllers, "--controllers", CONTROLLERS)
+    requested = comma_list(args.controllers, "--controllers", CONTROLLERS)
     airframe = load_airframe(args.airframe).name
     out = output_dir(args.out)
     use_threads(args)
-    results, figures, training = _protocol(args, controllers, airframe, out)
-    source = "trained here from scratch" if args.train else "shipped (falcon_rl/policies)"
-    solved = training.get("solved")
-    if args.train and training:
-        source += (f", {training['frames']:,} frames in {training['wall_seconds']:.0f} s, " +
-                   ("not solved" if solved is None else "stopped when solved"))
-    if not any(r.controller == "PPO" for r in results):
-        source = "not scored: no shipped policy for this airframe"
-    report = write_report(results, out, figures, "falcon-rl demo")
-    trim_lines, trim_doc = _trims_and_ground_effect(out)
-    flight_lines, flight_doc = _seen_flight(args, airframe, out)
-    text = report.read_text()
-    head, _, tail = text.partition("## Altitude acquisition and hold")
-    text = (head + f"## Altitude acquisition and hold ({airframe}; PPO {source})" + tail
-            + "\n" + "\n".join(trim_lines) + "\n" + "\n".join(flight_lines))
-    report.write_text(text)
+    controllers, skipped = _scored_controllers(args, requested)
+    stages = len(controllers) + 3 + int(args.train and "ppo" in controllers)
+    with StageLog(NAME, out / LOG_NAME, stages) as log:
+        if skipped:
+            log.note(skipped)
+        results, figures, training = _protocol(args, controllers, airframe, out, log)
+        log.stage("trim and ground-effect table of every shipped airframe")
+        trim_lines, trim_doc = _trims_and_ground_effect(out, log.interactive)
+        flight_lines, flight_doc = _seen_flight(args, airframe, out, log)
+        report, text = _write_report(args, requested, results, figures, training, airframe, out,
+                                     [*trim_lines, *flight_lines])
     doc = {"altitude": [result_document(r) for r in results], **trim_doc, **flight_doc, "report": str(report),
-           "figures": [str(f) for f in figures], "training": training}
+           "log": str(out / LOG_NAME), "figures": [str(f) for f in figures], "training": training}
     emit(args, doc, text + f"\nreport: {report}")
     return 0
+
+
+def _write_report(args: argparse.Namespace, requested: list[str], results: list, figures: list[Path],
+                  training: dict, airframe: str, out: Path, sections: list[str]) -> tuple[Path, str]:
+    """report.md (and results.json) of the demo: the protocol's table with where PPO came from, then
+    ``sections``; returns (its path, its text)."""
+    from ..evaluation.report import write_report
+
+    source = "trained here from scratch" if args.train else "shipped (falcon_rl/policies)"
+    if args.train and training:
+        source += (f", {training['frames']:,} frames in {training['wall_seconds']:.0f} s, " +
+                   ("not solved" if training.get("solved") is None else "stopped when solved"))
+    if "ppo" not in requested:
+        source = "not requested"
+    elif not any(r.controller == "PPO" for r in results):
+        source = "not scored: no shipped policy for this airframe"
+    report = write_report(results, out, figures, "falcon-rl demo")
+    head, _, tail = report.read_text().partition("## Altitude acquisition and hold")
+    text = (head + f"## Altitude acquisition and hold ({airframe}; PPO {source})" + tail
+            + "\n" + "\n".join(sections))
+    write_atomic(report, text)
+    return report, text

@@ -7,11 +7,18 @@
 Tasks, their controllers, protocols and figures come from the task registry (``TaskSpec``); a
 controller that does not apply to the task, or a policy of another task, exits 2 with a one-line reason
 before any env is built.
+
+Each run gets its own folder: without ``--out``, a new ``runs/eval/TASK-CONTROLLER-AIRFRAME-UTCTIME``
+(``-2``, ``-3``, ... when two runs start in the same second); a ``--out`` that already holds a report
+is refused in one line unless ``--force``. Where the report went is said on stderr (and in the JSON).
 """
 
 from __future__ import annotations
 
 import argparse
+import re
+import sys
+from datetime import datetime, timezone
 from pathlib import Path
 
 from ._common import (
@@ -30,6 +37,14 @@ from ._common import (
 
 NAME = "eval"
 HELP = "evaluate a controller (the task's baselines: lqr | mppi | trim, or a policy file) on its protocol"
+#: The folder under which each run without --out gets its own.
+RUNS_FOLDER = Path("runs/eval")
+#: The report of a run (next to results.json and the figure); a --out holding one is not overwritten.
+REPORT_NAME = "report.md"
+#: Characters of the task, controller and airframe names kept in a run's folder name.
+MAX_PART_CHARACTERS = 40
+#: Most same-second runs of the same task, controller and airframe that get a folder each.
+MAX_SAME_SECOND_RUNS = 1000
 
 
 def controllers_help() -> str:
@@ -56,7 +71,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--maneuvers", default=None,
                         help=f"comma list of {','.join(MANEUVERS)} (protocols that fly maneuvers: attitude)")
     add_flight_arguments(parser, "episode length, s (default: the protocol's; attitude: cuts each maneuver)",
-                         "runs/eval", "folder for report.md, results.json, PNGs")
+                         None, "folder for report.md, results.json and the figure (default: a new folder per "
+                         f"run, {RUNS_FOLDER}/TASK-CONTROLLER-AIRFRAME-UTCTIME); one that already holds a "
+                         "report is refused unless --force")
+    parser.add_argument("--force", action="store_true", help="replace the report of an earlier run in --out")
 
 
 def _protocol_options(args: argparse.Namespace, protocol) -> dict:
@@ -84,10 +102,47 @@ def run(args: argparse.Namespace) -> int:
     protocol = spec.protocol_function()
     options = _protocol_options(args, protocol)
     label = check_controller(args.controller, args.task, args.airframe, policy_seed=args.policy_seed)
-    out = output_dir(args.out)
-    figure = inside(out, f"{args.task}_{airframe.name}_{label}.png", "figure name")
+    figure_name = inside(Path(), f"{args.task}_{airframe.name}_{label}.png", "figure name").name
+    out = given_folder(args.out, args.force) if args.out is not None else run_folder(
+        RUNS_FOLDER, (args.task, label, airframe.name))
+    figure = out / figure_name
     title = f"{label} on {airframe.name}: {args.task} protocol"
-    return _evaluate(args, spec, options, label, title, figure)
+    try:
+        return _evaluate(args, spec, options, label, title, figure)
+    except BaseException:
+        if args.out is None and not any(out.iterdir()):  # the run's own folder, left empty: not kept
+            out.rmdir()
+        raise
+
+
+def given_folder(path: str, force: bool) -> Path:
+    """``--out`` as a writable folder, refused (UsageError) when it holds the report of an earlier run and
+    ``force`` is not set."""
+    out = output_dir(path)
+    if (out / REPORT_NAME).exists() and not force:
+        raise UsageError(f"--out {path!r} already holds the {REPORT_NAME} of an earlier run: add --force to "
+                         "replace it, or leave --out out for a new folder per run")
+    return out
+
+
+def run_folder(root: Path, parts: tuple[str, ...], now: datetime | None = None) -> Path:
+    """A new folder ``root/PART-PART-...-UTCTIME`` (``now``, default the current time, as
+    ``20250101T120000Z``) for one run, created here; ``-2``, ``-3``, ... are added when the name is taken
+    (two runs in the same second). Characters other than letters, digits, ``_`` and ``.`` in a part
+    become ``_``, and a part keeps its first :data:`MAX_PART_CHARACTERS` (a long policy file name)."""
+    stamp = (now or datetime.now(timezone.utc)).strftime("%Y%m%dT%H%M%SZ")
+    cleaned = (re.sub(r"[^A-Za-z0-9_.]+", "_", p)[:MAX_PART_CHARACTERS].strip(".") or "_" for p in parts)
+    name = "-".join([*cleaned, stamp])
+    output_dir(root, "the default --out folder")
+    for attempt in range(1, MAX_SAME_SECOND_RUNS + 1):
+        folder = root / (name if attempt == 1 else f"{name}-{attempt}")
+        try:
+            folder.mkdir()
+        except FileExistsError:
+            continue
+        return folder
+    raise UsageError(f"{str(root)!r} already holds {MAX_SAME_SECOND_RUNS} folders named {name}[-N]: "
+                     "give --out")
 
 
 def _evaluate(args: argparse.Namespace, spec, options: dict, label: str, title: str, figure: Path) -> int:
@@ -103,6 +158,7 @@ def _evaluate(args: argparse.Namespace, spec, options: dict, label: str, title: 
     figures = [] if plot is None else [plot(result, figure)]
     report = write_report([result], figure.parent, figures, title)
     doc = {**result_document(result), "report": str(report), "figure": str(figures[0]) if figures else None}
-    emit(args, doc, report.read_text() + f"\nreport: {report}")
+    print(f"eval: report in {report}", file=sys.stderr)
+    emit(args, doc, report.read_text())
     return 0
 

@@ -11,6 +11,7 @@ import json
 import math
 from pathlib import Path
 
+from ..atomic_files import write_atomic
 from ..envs.tasks import TASK_SPECS, Metric
 from .protocols import ProtocolResult
 
@@ -64,16 +65,14 @@ def result_document(result: ProtocolResult) -> dict:
 
 def write_report(results: list[ProtocolResult], out: Path, figures: list[Path], title: str) -> Path:
     """Write ``report.md`` (a section per task, in order of first appearance) and ``results.json``
-    under ``out``; returns the markdown path."""
-    out.mkdir(parents=True, exist_ok=True)
+    under ``out``, each atomically; returns the markdown path."""
     lines = [f"# {title}", ""]
     for task in dict.fromkeys(r.task for r in results):
         spec = TASK_SPECS.get(task)
         heading = spec.title if spec is not None else task
         lines += [f"## {heading}", "", task_table([r for r in results if r.task == task]), ""]
     lines += [f"![{p.stem}]({p.name})" for p in figures]
-    report = out / "report.md"
-    report.write_text("\n".join(lines) + "\n")
-    (out / "results.json").write_text(json.dumps([result_document(r) for r in results], indent=2,
-                                                 default=str))
+    report = write_atomic(out / "report.md", "\n".join(lines) + "\n")
+    documents = [result_document(r) for r in results]
+    write_atomic(out / "results.json", json.dumps(documents, indent=2, default=str))
     return report
