@@ -109,7 +109,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--train", action="store_true",
                         help="train PPO from scratch instead of using the shipped one, until it solves "
                              "the altitude protocol's validation (survival 1, acquisition >= 0.95, RMSE <= "
-                             "0.5 m; a few minutes on the Ranger on 2 CPU cores)")
+                             "0.5 m, confirmed on 100 more episodes; a few minutes on the Ranger on 2 CPU "
+                             "cores)")
     parser.add_argument("--frames", type=positive_int, default=None,
                         help="with --train: the most env steps it may take (default: the recipe's)")
     parser.add_argument("--backend", choices=["torch", "warp"], default="warp",
