@@ -9,10 +9,14 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
+import tempfile
 import unicodedata
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
+
+from ..atomic_files import TEMPORARY_SUFFIX, temporary_prefix
 
 #: Largest integer a count flag accepts (a 400-digit integer is a typo, not a request).
 MAX_COUNT = 10**9
@@ -22,6 +26,13 @@ MAX_EPISODE_SECONDS = 3600.0
 MAX_AIRSPEED = 340.0
 #: Heights the atmosphere model covers, m (the ISA tables stop at 20 km).
 MAX_HEIGHT = 20_000.0
+#: What an output folder must have room for when its command names no files (:func:`output_dir`): a
+#: 48-character file name.
+ROOM_FOR = ("x" * 48,)
+#: Random characters in the name of an atomic write's temporary (``tempfile``'s names).
+_RANDOM_CHARACTERS = 8
+#: Fallbacks of the system's limits where ``os.pathconf`` cannot tell (bytes; Linux's values).
+_PATH_MAX, _NAME_MAX = 4096, 255
 
 
 class UsageError(ValueError):
@@ -107,14 +118,53 @@ def check_device(device: str, flag: str = "--device") -> str:
     return device
 
 
-def output_dir(path: str | Path, flag: str = "--out") -> Path:
-    """``path`` as a directory that exists (created) and is writable, else UsageError."""
+def _limit(folder: Path, name: str, fallback: int) -> int:
+    """``os.pathconf`` of the nearest existing folder at or above ``folder`` (``fallback`` where the
+    system cannot tell)."""
+    existing = next((p for p in (folder, *folder.parents) if p.is_dir()), Path("/"))
+    try:
+        return int(os.pathconf(existing, name))
+    except (OSError, ValueError, AttributeError):  # no such limit here (or no pathconf: Windows)
+        return fallback
+
+
+def _temporary_of(relative: str) -> Path:
+    """The temporary an atomic write of ``relative`` makes (:mod:`falcon_rl.atomic_files`:
+    ``.<name>.<random>.tmp``, as long as anything written there)."""
+    written = Path(relative)
+    return written.with_name(f"{temporary_prefix(written)}{'x' * _RANDOM_CHARACTERS}{TEMPORARY_SUFFIX}")
+
+
+def check_lengths(path: str | Path, files: Iterable[str], flag: str = "--out") -> None:
+    """UsageError unless every file of ``files`` (paths relative to the folder ``path``), as the temporary
+    an atomic write makes of it, fits the system's limits: each name at most NAME_MAX bytes, the whole
+    absolute path under PATH_MAX (``os.pathconf``; 255 and 4096 on Linux)."""
+    folder = Path(os.path.abspath(path))
+    name_max, path_max = _limit(folder, "PC_NAME_MAX", _NAME_MAX), _limit(folder, "PC_PATH_MAX", _PATH_MAX)
+    shown = _shown(str(path), 80)
+    for temporary in map(_temporary_of, files):
+        for name in temporary.parts:
+            size = len(os.fsencode(name))
+            if size > name_max:
+                raise UsageError(f"{flag} {shown}: the file name {_shown(name, 80)} written under it is "
+                                 f"{size} bytes, more than this file system's limit of {name_max} (NAME_MAX)")
+        size = len(os.fsencode(str(folder / temporary)))
+        if size >= path_max:
+            raise UsageError(f"{flag} {shown} is too long: the files written under it would have paths of "
+                             f"{size} bytes, and the system's limit is {path_max - 1} (PATH_MAX {path_max}); "
+                             f"shorten it by {size - path_max + 1}")
+
+
+def output_dir(path: str | Path, flag: str = "--out", files: Iterable[str] = ROOM_FOR) -> Path:
+    """``path`` as a directory that exists (created) and is writable, with room for ``files`` (paths
+    relative to it: the longest the command writes, :func:`check_lengths`), else UsageError. The
+    writability probe is a temporary of a unique name, so checks running at once do not collide."""
     path = Path(path)
+    check_lengths(path, files, flag)
     try:
         path.mkdir(parents=True, exist_ok=True)
-        probe = path / ".write-test"
-        probe.write_bytes(b"")
-        probe.unlink()
+        with tempfile.NamedTemporaryFile(dir=path, prefix=".write-test."):
+            pass
     except (OSError, ValueError) as exc:  # ValueError: a NUL byte in the path
         reason = getattr(exc, "strerror", None) or exc
         raise UsageError(f"{flag} {str(path)!r} is not a writable directory ({reason})") from None
@@ -135,7 +185,7 @@ def output_file(path: str | Path, flag: str) -> Path:
     path = Path(path)
     if path.is_dir() or path.name in ("", ".", ".."):
         raise UsageError(f"{flag} {str(path)!r} is a directory, not a file name")
-    output_dir(path.parent, flag)
+    output_dir(path.parent, flag, (path.name,))
     return path
 
 
@@ -278,6 +328,7 @@ __all__ = [
     "bounded_int",
     "check_controller",
     "check_device",
+    "check_lengths",
     "check_policy",
     "comma_list",
     "emit",

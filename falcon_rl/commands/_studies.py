@@ -1,6 +1,9 @@
 """``falcon-rl experiment altitude|maneuvers|ground-effect|robustness|all``: the paper's studies as one
 sweep of cached cells (``falcon_rl.experiment``), then per study a folder with report.md,
-tables.tex (the paper's layout), results.json and the figures."""
+tables.tex (the paper's layout), results.json and the figures. Every file is written atomically
+(:mod:`falcon_rl.atomic_files`): a full disk stops the command with one line and leaves the earlier
+outputs as they were. ``--out`` is checked before anything runs: writable, and short enough for the
+longest file the sweep writes under it (:func:`study_outputs`)."""
 
 from __future__ import annotations
 
@@ -9,7 +12,16 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+from ..atomic_files import write_atomic
 from ._common import UsageError, comma_list, output_dir
+
+#: The files of each study's folder besides its figures.
+STUDY_FILES = ("report.md", "tables.tex", "results.json")
+#: The figures each study draws (``{airframe}``: one per airframe).
+STUDY_FIGURES = {"altitude": ("altitude.png",), "maneuvers": ("bank_{airframe}.png", "tracks.png"),
+                 "ground-effect": ("ground_effect.png",), "robustness": ("robustness.png",)}
+#: Characters allowed for the name of a training metric's log file (``logs/<run>/scalars/<metric>.csv``).
+METRIC_NAME_ALLOWANCE = 32
 
 
 def scale_of(args: argparse.Namespace) -> Any:
@@ -37,19 +49,49 @@ def study_cells(args: argparse.Namespace, studies: list[str], out: Path) -> dict
     airframes = tuple(load_airframe(a).name for a in comma_list(args.airframes or ",".join(AIRFRAMES),
                                                                   "--airframes"))
     scale = scale_of(args)
-    options = {"backend": args.backend, "policies": str(out / "policies"), "train": bool(args.train)}
+    options = {"backend": args.backend, "train": bool(args.train)}
+    locations = {"policies": str(out / "policies")}  # where, not what: not in the cells' keys
     asked = (None if args.controllers is None
              else tuple(comma_list(args.controllers, "--controllers", CONTROLLERS)))
-    return {study: cells_of(study, airframes, asked or STUDY_CONTROLLERS[study], scale, options)
+    return {study: cells_of(study, airframes, asked or STUDY_CONTROLLERS[study], scale, options, locations)
             for study in studies}
 
 
+def study_outputs(per_study: dict[str, list], out: Path) -> list[str]:
+    """The files the sweep of ``per_study`` writes under ``out``, relative to it: the cell files, each
+    study's files and figures, and the policy files (with ``--train``, also the logs) of the learned
+    cells (for the up-front length check of ``--out``)."""
+    from ..experiment.studies import LEARNED, policy_folder
+
+    files = []
+    for study, cells in per_study.items():
+        files += [f"cells/{cell.key()}.json" for cell in cells[:1]]
+        files += [f"{study}/{name}" for name in STUDY_FILES]
+        files += [f"{study}/{name.format(airframe=cell.airframe)}" for cell in cells
+                  for name in STUDY_FIGURES[study]]
+        files += [str(policy_folder(cell).relative_to(out) / name) for cell in cells
+                  if cell.controller in LEARNED for name in _training_files(cell)]
+    return files
+
+
+def _training_files(cell: Any) -> list[str]:
+    """The files of learned ``cell``'s policy folder: those its training writes (with --train; the metric
+    logs' names allowed :data:`METRIC_NAME_ALLOWANCE` characters), else the policy file it reads."""
+    if not cell.param_dict.get("train"):
+        return ["policy.pt"]
+    from ..recipes.runner import OUTPUT_FILES
+
+    run = f"{cell.controller}_{cell.task}_{cell.airframe}"
+    return [*OUTPUT_FILES, f"logs/{run}/scalars/{'x' * METRIC_NAME_ALLOWANCE}.csv"]
+
+
 def run_studies(args: argparse.Namespace, studies: list[str]) -> tuple[dict[str, Any], str]:
-    """Run the sweep (cached cells skipped), write every study's outputs; (document, text)."""
+    """Check ``--out``, run the sweep (cached cells skipped), write every study's outputs; (document,
+    text)."""
     from ..experiment import CellCache, CellsFailedError, run_cells
 
-    out = output_dir(args.out)
-    per_study = study_cells(args, studies, out)
+    per_study = study_cells(args, studies, Path(args.out))
+    out = output_dir(args.out, files=study_outputs(per_study, Path(args.out)))
     cells = [cell for cells in per_study.values() for cell in cells]
     failures: dict = {}
     try:
@@ -98,9 +140,8 @@ def write_study(study: str, cells: list, results: dict, failures: dict, folder: 
         sections += ["## Cells without a result", "", *status, ""]
     figures = study_figures(study, cells, results, folder)
     sections += [f"![{p.stem}]({p.name})" for p in figures]
-    report = folder / "report.md"
-    report.write_text("\n".join(sections) + "\n")
-    (folder / "tables.tex").write_text("\n\n".join(latex) + "\n")
+    report = write_atomic(folder / "report.md", "\n".join(sections) + "\n")
+    write_atomic(folder / "tables.tex", "\n\n".join(latex) + "\n")
     document = {"report": str(report), "results": str(results_path), "tables": str(folder / "tables.tex"),
                 "figures": [str(p) for p in figures], "cells": len(cells),
                 "finished": sum(cell.key() in results for cell in cells)}
@@ -133,17 +174,19 @@ def study_figures(study: str, cells: list, results: dict, folder: Path) -> list[
     from ..viz import experiment as figures
 
     shown = first_replicates(cells, results)
+    names = STUDY_FIGURES[study]
     written: list[Path | None] = []
     if study == "altitude":
-        written.append(figures.plot_altitude_study(shown, folder / "altitude.png"))
+        written.append(figures.plot_altitude_study(shown, folder / names[0]))
     elif study == "maneuvers":
         for airframe in dict.fromkeys(a for a, _ in shown):
-            written.append(figures.plot_bank_facets_study(shown, airframe, folder / f"bank_{airframe}.png"))
+            written.append(figures.plot_bank_facets_study(shown, airframe,
+                                                          folder / names[0].format(airframe=airframe)))
         controllers = [c for c in ("ppo", "lqr", "mppi", "sac", "td3") if any(k[1] == c for k in shown)]
         if controllers:
-            written.append(figures.plot_maneuver_tracks(shown, controllers[0], folder / "tracks.png"))
+            written.append(figures.plot_maneuver_tracks(shown, controllers[0], folder / names[1]))
     elif study == "ground-effect":
-        written.append(figures.plot_ground_effect_study(shown, folder / "ground_effect.png"))
+        written.append(figures.plot_ground_effect_study(shown, folder / names[0]))
     elif study == "robustness":
-        written.append(figures.plot_robustness_study(shown, folder / "robustness.png"))
+        written.append(figures.plot_robustness_study(shown, folder / names[0]))
     return [p for p in written if p is not None]

@@ -19,6 +19,9 @@ For each task and controller, the task's protocol on the full model and on one a
 effect; ``falcon_rl.evaluation.ablation``). Writes report.md (a table per task: the headline metric,
 its change against the full model and survival per arm and controller), results.json and ablation.png
 (bars of the change).
+
+Every output is written atomically (``falcon_rl.atomic_files``): a full disk ends the command with one
+line (exit 1) and leaves earlier outputs intact.
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ import argparse
 import json
 from pathlib import Path
 
+from ..atomic_files import write_atomic
 from ._common import (
     add_flight_arguments,
     check_controller,
@@ -42,6 +46,8 @@ NAME = "experiment"
 HELP = "the paper's studies (altitude, maneuvers, ground-effect, robustness, all) and the physics ablation"
 STUDY_ACTIONS = ("altitude", "maneuvers", "ground-effect", "robustness")
 ACTIONS = (*STUDY_ACTIONS, "all", "ablation")
+#: The files ``experiment ablation`` writes under --out.
+ABLATION_FILES = ("ablation.png", "report.md", "results.json")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -88,7 +94,7 @@ def _parse(args: argparse.Namespace) -> tuple[list[str], dict[str, str], str, Pa
     for task in tasks:
         for name in controllers:
             labels[name] = check_controller(name, task, args.airframe, "--controllers")
-    return tasks, labels, airframe, output_dir(args.out or "runs/ablation")
+    return tasks, labels, airframe, output_dir(args.out or "runs/ablation", files=ABLATION_FILES)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -120,15 +126,14 @@ def run_ablation_command(args: argparse.Namespace) -> int:
                                         episodes=args.episodes or 20, seed=args.seed,
                                         backend=args.backend,
                                         device=args.device, episode_seconds=args.seconds))
-    figure = plot_ablation(results, out / "ablation.png")
+    figure = plot_ablation(results, out / ABLATION_FILES[0])
     table = ablation_markdown(results)
     settings = {"episodes": args.episodes or 20, "seed": args.seed, "backend": args.backend,
                 "device": args.device, "seconds": args.seconds}
-    report = out / "report.md"
-    report.write_text(f"# Ablation on {airframe}\n\nSettings: {json.dumps(settings)}\n\n{table}\n"
-                      f"![ablation]({figure.name})\n")
+    report = write_atomic(out / ABLATION_FILES[1], f"# Ablation on {airframe}\n\nSettings: "
+                          f"{json.dumps(settings)}\n\n{table}\n![ablation]({figure.name})\n")
     document = {"settings": settings, "results": ablation_document(results), "report": str(report),
                 "figure": str(figure)}
-    (out / "results.json").write_text(json.dumps(document, indent=2, default=float))
+    write_atomic(out / ABLATION_FILES[2], json.dumps(document, indent=2, default=float))
     emit(args, document, table + f"\nreport: {report}")
     return 0

@@ -20,6 +20,13 @@ The key of a cell (:meth:`Cell.key`) is the SHA-256 (first 32 hex digits) of the
 so changing any field, the package version or the commit of the package's git checkout (when it is one;
 an installed package has none and the commit is null) gives a new key. Uncommitted edits do not change
 the key: commit before a sweep whose cache should follow the code.
+
+A cell's ``locations`` (name -> path: where its function finds or puts files, e.g. the folder of the
+policies it trains under ``--out``) say where, not what: they are not in the key, nor in the cell's
+equality and hash, so the same settings run from another working directory, with ``--out`` typed
+absolute or relative, or from a moved folder, read the same cached cells. Versions before locations
+existed kept such paths among the params (and so in the key); :meth:`Cell.legacy` is that form, which
+the cache still reads.
 """
 
 from __future__ import annotations
@@ -32,7 +39,7 @@ import random
 import sys
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
 from typing import Any
@@ -42,7 +49,8 @@ CELL_FUNCTIONS: dict[str, str] = {}
 
 #: Types a parameter value may have (tuples of them too; lists are stored as tuples).
 _SCALARS = (str, int, float, bool, type(None))
-#: Fields of the cell in its key and its JSON form, in order.
+#: Fields of the cell in its key and its JSON form, in order (its JSON form adds ``locations`` when it has
+#: any).
 CELL_FIELDS = ("study", "task", "airframe", "controller", "seed", "draw", "params")
 
 
@@ -72,7 +80,9 @@ def freeze_params(params: Mapping[str, Any] | Params | None) -> Params:
 @dataclass(frozen=True)
 class Cell:
     """One run of an experiment. ``params`` are sorted (name, value) pairs (build them from a dict with
-    :meth:`make` or :func:`freeze_params`); values are JSON scalars or tuples of them."""
+    :meth:`make` or :func:`freeze_params`); values are JSON scalars or tuples of them. ``locations``
+    (sorted (name, path) pairs) say where the cell's function finds or puts files; they are not part of
+    the cell's identity (key, equality, hash; see the module docstring)."""
 
     study: str
     task: str
@@ -81,6 +91,7 @@ class Cell:
     seed: int
     draw: int = 0
     params: Params = ()
+    locations: Params = field(default=(), compare=False)
 
     def __post_init__(self) -> None:
         for name in ("study", "task", "airframe", "controller"):
@@ -91,31 +102,51 @@ class Cell:
             if isinstance(value, bool) or not isinstance(value, int) or value < 0:
                 raise ValueError(f"cell {name} must be an int >= 0, got {value!r}")
         object.__setattr__(self, "params", freeze_params(self.params))
+        object.__setattr__(self, "locations", freeze_params(self.locations))
+        for name, value in self.locations:
+            if not isinstance(value, str):
+                raise ValueError(f"cell location {name!r} must be a path string, got {value!r}")
 
     @classmethod
     def make(cls, study: str, task: str, airframe: str, controller: str, seed: int, draw: int = 0,
-             params: Mapping[str, Any] | None = None) -> Cell:
-        """A cell with ``params`` given as a dict."""
-        return cls(study, task, airframe, controller, seed, draw, freeze_params(params))
+             params: Mapping[str, Any] | None = None, locations: Mapping[str, str] | Params | None = None
+             ) -> Cell:
+        """A cell with ``params`` (and ``locations``) given as dicts."""
+        return cls(study, task, airframe, controller, seed, draw, freeze_params(params),
+                   freeze_params(locations))
 
     @property
     def param_dict(self) -> dict[str, Any]:
         """The parameters as a dict."""
         return dict(self.params)
 
+    def identity(self) -> dict[str, Any]:
+        """What the cell computes, the content of its key: the :data:`CELL_FIELDS`, ``params`` as a
+        dict."""
+        return {name: (self.param_dict if name == "params" else getattr(self, name)) for name in CELL_FIELDS}
+
     def to_dict(self) -> dict[str, Any]:
-        """JSON form: every field, ``params`` as a dict (tuples as lists once dumped)."""
-        return {f.name: (self.param_dict if f.name == "params" else getattr(self, f.name))
-                for f in fields(self)}
+        """JSON form: :meth:`identity`, and ``locations`` as a dict when there are any (tuples as lists
+        once dumped)."""
+        locations = {"locations": dict(self.locations)} if self.locations else {}
+        return {**self.identity(), **locations}
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> Cell:
         """Inverse of :meth:`to_dict` (also after a JSON round trip)."""
+        if not isinstance(data, Mapping):
+            raise ValueError(f"a cell document is a JSON object, got {type(data).__name__}")
         missing = [name for name in CELL_FIELDS if name not in data and name not in ("draw", "params")]
         if missing:
             raise ValueError(f"cell document lacks {missing}")
         return cls.make(data["study"], data["task"], data["airframe"], data["controller"], data["seed"],
-                        data.get("draw", 0), data.get("params") or {})
+                        data.get("draw", 0), data.get("params") or {}, data.get("locations") or {})
+
+    def legacy(self) -> Cell:
+        """The cell as versions before ``locations`` held it: its locations among its params (keyed; the
+        form of their cache files, :meth:`key` of this)."""
+        return Cell.make(self.study, self.task, self.airframe, self.controller, self.seed, self.draw,
+                         {**self.param_dict, **dict(self.locations)})
 
     def group(self) -> tuple[Any, ...]:
         """The cell without its seed and draw: the replicates of a table entry share it."""
@@ -130,7 +161,7 @@ class Cell:
     def key(self, version: Mapping[str, Any] | None = None) -> str:
         """Stable hex hash of the cell and the code version (:func:`code_version` unless given); see the
         module docstring for what goes into it."""
-        document = {"cell": self.to_dict(), "version": dict(code_version() if version is None else version)}
+        document = {"cell": self.identity(), "version": dict(code_version() if version is None else version)}
         text = json.dumps(document, sort_keys=True, separators=(",", ":"), allow_nan=False)
         return hashlib.sha256(text.encode()).hexdigest()[:32]
 

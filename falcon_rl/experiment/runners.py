@@ -4,7 +4,9 @@ as its cell finishes, so a killed sweep loses only the cells in flight.
 
 - ``runner="local"``, ``workers=1``: one cell after the other in this process;
 - ``runner="local"``, ``workers>1``: a ``concurrent.futures.ProcessPoolExecutor`` of ``workers``
-  processes started with the spawn context;
+  processes started with the spawn context (:func:`worker_pool`). The workers die with this process,
+  however it ends (SIGKILL included: :func:`die_with_parent`), and an error here (a full disk writing
+  a result) or Ctrl-C ends the cells in flight at once instead of waiting for them;
 - ``runner="ray"``: one Ray task per cell on the cluster at ``ray_address``, or on a local Ray instance
   with ``num_cpus=workers`` (Ray is an optional extra: ``pip install 'falcon-rl[distributed]'``).
 
@@ -12,15 +14,23 @@ Every cell runs through :func:`~.cells.run_cell`, which seeds the global generat
 runners give the same numbers. The cell function's "module:attribute" is looked up here and sent with
 the cell, together with this process's ``sys.path``, so functions registered at run time (a test's, a
 script's) resolve in the workers too. A cell that raises does not stop the sweep: after it,
-:class:`CellsFailedError` names the failed cells in one line (the finished ones are cached).
+:class:`CellsFailedError` names the failed cells in one line (the finished ones are cached). A full disk
+(or quota) is the exception: every later cell would fail the same way, so its ``OSError`` stops the
+sweep (local runner) and reaches the caller as it is.
 """
 
 from __future__ import annotations
 
 import concurrent.futures as futures
 import contextlib
+import ctypes
+import errno
 import multiprocessing
+import os
+import signal
 import sys
+import threading
+import time
 from collections.abc import Iterable, Sequence
 from typing import Any
 
@@ -31,6 +41,12 @@ from .cells import Cell, cell_reference, run_cell
 
 RUNNERS = ("local", "ray")
 RAY_HINT = "pip install 'falcon-rl[distributed]'"
+#: ``prctl`` option of Linux: the signal a process gets when the thread that started it ends.
+PR_SET_PDEATHSIG = 1
+#: How often a worker without ``prctl`` looks whether its parent is still there, s.
+PARENT_POLL_SECONDS = 0.5
+#: ``errno`` values of a full disk or quota: such an error in a cell stops the sweep.
+DISK_FULL = (errno.ENOSPC, errno.EDQUOT)
 
 
 class CellsFailedError(RuntimeError):
@@ -46,14 +62,21 @@ class CellsFailedError(RuntimeError):
 
 def _execute(cell: Cell, reference: str, paths: Sequence[str], threads: int = 1) -> tuple[bool, Any]:
     """Worker side: (True, result) or (False, "Type: message") of ``cell`` on ``threads`` torch threads,
-    never raising."""
+    raising only the ``OSError`` of a full disk (:func:`_disk_full`)."""
     for path in paths:
         if path not in sys.path:
             sys.path.append(path)
     try:
         return True, run_cell(cell, reference, threads)
     except Exception as error:  # a failed cell is reported, the sweep goes on
+        if _disk_full(error):
+            raise
         return False, _error_line(error)
+
+
+def _disk_full(error: BaseException) -> bool:
+    """Whether ``error`` is the ``OSError`` of a full disk or quota (:data:`DISK_FULL`)."""
+    return isinstance(error, OSError) and error.errno in DISK_FULL
 
 
 def _error_line(error: BaseException) -> str:
@@ -129,24 +152,89 @@ def run_cells(cells: Iterable[Cell], cache: CellCache, runner: str = "local", wo
     return results
 
 
+def _parent_death_signal(signum: int) -> bool:
+    """Ask Linux to send ``signum`` to this process when its parent ends; False where ``prctl`` is not
+    available (other systems)."""
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        return libc.prctl(PR_SET_PDEATHSIG, int(signum), 0, 0, 0) == 0
+    except (OSError, AttributeError):  # no C library or no prctl in it
+        return False
+
+
+def watch_parent(parent: int, interval: float = PARENT_POLL_SECONDS) -> threading.Thread:
+    """Start a daemon thread that ends this process (exit code 1) once its parent process is no longer
+    ``parent`` (it ended, and the process was handed to another); returns the thread."""
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(interval)
+        os._exit(1)
+
+    thread = threading.Thread(target=watch, name="falcon-rl-watch-parent", daemon=True)
+    thread.start()
+    return thread
+
+
+def die_with_parent(parent: int) -> None:
+    """Worker initializer: end this worker when ``parent`` (the sweep's process, its pid) ends, however it
+    ends. On Linux the kernel sends SIGKILL (``prctl(PR_SET_PDEATHSIG)``: nothing in a worker needs
+    cleaning up, its results are written by the parent); elsewhere :func:`watch_parent` polls. A parent
+    that ended before this ran is caught by the check that follows. (Linux signals when the *thread*
+    that started the worker ends: the pool's workers are started by the thread that submits the cells,
+    which waits for them.)"""
+    if not _parent_death_signal(signal.SIGKILL):
+        watch_parent(parent)
+    if os.getppid() != parent:
+        os._exit(1)
+
+
+def _start_worker(parent: int) -> None:
+    """Initializer of a :func:`worker_pool` worker: :func:`die_with_parent`, and a thread lock for tqdm's
+    bars (its default, a multiprocessing lock, is reported as leaked by the resource tracker when the
+    worker is terminated)."""
+    die_with_parent(parent)
+    tqdm.set_lock(threading.RLock())
+
+
+@contextlib.contextmanager
+def worker_pool(workers: int) -> Any:
+    """A spawn-context ``ProcessPoolExecutor`` of ``workers`` processes that die with this one
+    (:func:`die_with_parent`). Leaving the block by an exception (an error finishing a cell, Ctrl-C)
+    cancels the queued calls and terminates the workers (the processes this one started while the pool
+    was open), so the calls in flight end at once."""
+    context = multiprocessing.get_context("spawn")
+    before = set(multiprocessing.active_children())
+    pool = futures.ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_start_worker,
+                                       initargs=(os.getpid(),))
+    try:
+        yield pool
+    except BaseException:
+        pool.shutdown(wait=False, cancel_futures=True)
+        for process in set(multiprocessing.active_children()) - before:
+            process.terminate()
+        raise
+    finally:
+        pool.shutdown(wait=True)
+
+
 def _run_processes(todo: list[tuple[str, Cell]], references: dict[str, str], paths: list[str], workers: int,
                    finish: Any, threads: int = 1) -> None:
-    """Run ``todo`` on a spawn-context process pool, finishing each cell as it completes."""
-    context = multiprocessing.get_context("spawn")
-    with futures.ProcessPoolExecutor(max_workers=min(workers, len(todo)), mp_context=context) as pool:
+    """Run ``todo`` on a :func:`worker_pool`, finishing each cell as it completes."""
+    with worker_pool(min(workers, len(todo))) as pool:
         pending = {pool.submit(_execute, cell, references[cell.study], paths, threads): (key, cell)
                    for key, cell in todo}
-        try:
-            for future in futures.as_completed(pending):
-                key, cell = pending[future]
-                try:
-                    outcome = future.result()
-                except Exception as error:  # the worker died (e.g. killed): the cell failed
-                    outcome = (False, _error_line(error))
-                finish(key, cell, outcome)
-        except BaseException:
-            pool.shutdown(wait=False, cancel_futures=True)
-            raise
+        for future in futures.as_completed(pending):
+            key, cell = pending[future]
+            try:
+                outcome = future.result()
+            except Exception as error:  # the worker died (e.g. killed): the cell failed
+                if _disk_full(error):
+                    raise
+                outcome = (False, _error_line(error))
+            finish(key, cell, outcome)
 
 
 def _run_ray(todo: list[tuple[str, Cell]], references: dict[str, str], paths: list[str], workers: int,
@@ -184,4 +272,5 @@ def _run_ray(todo: list[tuple[str, Cell]], references: dict[str, str], paths: li
             ray.shutdown()
 
 
-__all__ = ["RUNNERS", "CellsFailedError", "import_ray", "run_cells"]
+__all__ = ["RUNNERS", "CellsFailedError", "die_with_parent", "import_ray", "run_cells", "watch_parent",
+           "worker_pool"]

@@ -14,7 +14,8 @@ only) and ``paper`` (the paper's sizes: 200 altitude episodes for learned rows, 
 
 Learned controllers (ppo, sac, td3) fly, for training seed k, the shipped policy of (task, airframe,
 algorithm) when k = 0 and one ships, else ``<policies>/<algorithm>_<task>_<airframe>_seed<k>/policy.pt``
-when it exists, else, with ``train`` on, the one the recipe trains there (checkpointed, resumable); a
+when it exists (``<policies>``: the cell's ``policies`` location, :func:`policy_folder`), else, with
+``train`` on, the one the recipe trains there (checkpointed, resumable); a
 cell with none of these is reported as "no policy" and its table entry stays empty. LQR runs once per
 cell, MPPI once per draw (the draw offsets its sampler's seed).
 """
@@ -76,9 +77,10 @@ SCALES: dict[str, Scale] = {
 
 
 def study_cells(study: str, airframes: tuple[str, ...], controllers: tuple[str, ...], scale: Scale,
-                options: dict[str, Any]) -> list[Cell]:
+                options: dict[str, Any], locations: dict[str, str] | None = None) -> list[Cell]:
     """The cells of ``study`` for every airframe and controller at ``scale``; ``options`` (backend,
-    policies folder, train) go into every cell's params."""
+    train) go into every cell's params, ``locations`` (``policies``: the folder of trained policies)
+    into its locations."""
     if study not in STUDIES:
         raise ValueError(f"unknown study {study!r}; choose from {STUDIES}")
     cells = []
@@ -91,9 +93,10 @@ def study_cells(study: str, airframes: tuple[str, ...], controllers: tuple[str, 
                     params = {**options, **_study_params(study, controller, scale)}
                     if controller in LEARNED:  # a new or retrained policy file makes a new cell
                         params["policy"] = policy_identity(Cell.make(study, STUDY_TASK[study], airframe,
-                                                                     controller, seed, draw, params))
+                                                                     controller, seed, draw, params,
+                                                                     locations))
                     cells.append(Cell.make(study, STUDY_TASK[study], airframe, controller, seed, draw,
-                                           params))
+                                           params, locations))
     return cells
 
 
@@ -124,19 +127,24 @@ def policy_source(cell: Cell) -> str:
         return cell.controller
     from ..policies import shipped_policy
 
-    params = cell.param_dict
     try:
         return str(shipped_policy(cell.task, cell.airframe, cell.controller, cell.seed))
     except ValueError:
         pass
-    folder = Path(params.get("policies", "runs/experiment/policies")) / (
-        f"{cell.controller}_{cell.task}_{cell.airframe}_seed{cell.seed}")
+    folder = policy_folder(cell)
     if (folder / "policy.pt").is_file():
         return str(folder / "policy.pt")
-    if not params.get("train", False):
+    if not cell.param_dict.get("train", False):
         raise NoPolicyError(f"no {cell.controller} policy for {cell.task} on {cell.airframe} (seed "
                             f"{cell.seed}): none ships; train one with --train")
     return _train(cell, folder)
+
+
+def policy_folder(cell: Cell) -> Path:
+    """Where a learned cell's policy is trained: ``<policies>/<algorithm>_<task>_<airframe>_seed<k>``
+    (``<policies>``: the cell's ``policies`` location, default runs/experiment/policies)."""
+    policies = dict(cell.locations).get("policies", "runs/experiment/policies")
+    return Path(policies) / f"{cell.controller}_{cell.task}_{cell.airframe}_seed{cell.seed}"
 
 
 def policy_identity(cell: Cell) -> str:
@@ -154,7 +162,7 @@ def policy_identity(cell: Cell) -> str:
 def replace_train(cell: Cell, train: bool) -> Cell:
     """``cell`` with its ``train`` param set to ``train``."""
     return Cell.make(cell.study, cell.task, cell.airframe, cell.controller, cell.seed, cell.draw,
-                     {**cell.param_dict, "train": train})
+                     {**cell.param_dict, "train": train}, cell.locations)
 
 
 def _train(cell: Cell, folder: Path) -> str:

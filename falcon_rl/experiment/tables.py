@@ -15,6 +15,7 @@ gave a value (an empty :class:`~.statistics.Aggregate`, a missing metric).
       "cells": [                                               # one per replicate (per seed and draw)
         {"key": "<32 hex>", "study": str, "task": str, "airframe": str, "controller": str,
          "seed": int, "draw": int, "params": {name: value},
+         "locations": {name: path},                            # only when the cell has any
          "status": "finished" | "failed", "error": str | null,
          "summary": {metric: float | null}, "seconds": float | null}
       ],
