@@ -27,7 +27,7 @@ PACKAGE_DIR = Path(__file__).resolve().parents[1] / ROOT
 LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("constants", ("falcon_rl.constants", "falcon_rl._lazy", "falcon_rl.atomic_files")),
     ("airframe", ("falcon_rl.airframe", "falcon_rl.airframe_tables")),
-    ("physics / recording", ("falcon_rl.physics", "falcon_rl.recording")),
+    ("physics / recording", ("falcon_rl.physics", "falcon_rl.recording", "falcon_rl.recording_schema")),
     ("envs / transforms / baselines / policies / validation / derive",
      ("falcon_rl.envs", "falcon_rl.transforms", "falcon_rl.baselines", "falcon_rl.policies",
       "falcon_rl.validation", "falcon_rl.derive")),
