@@ -18,7 +18,8 @@ from collections.abc import Callable
 import torch
 
 from falcon_rl import make_env
-from falcon_rl.bench import env_stepper
+from falcon_rl.airframe import DEFAULT_AIRFRAME
+from falcon_rl.evaluation.bench import env_stepper
 
 
 def _time(fn: Callable[[], object], device: str, calls: int = 200, blocks: int = 5) -> float:
@@ -78,7 +79,7 @@ def profile_step(task: str, airframe: str, num_envs: int, backend: str, device: 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--task", default="altitude")
-    parser.add_argument("--airframe", default="navion")
+    parser.add_argument("--airframe", default=DEFAULT_AIRFRAME)
     parser.add_argument("--envs", default="1,4096", help="comma list of env counts")
     parser.add_argument("--backend", default="warp")
     parser.add_argument("--device", default="cpu")

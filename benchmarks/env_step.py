@@ -26,7 +26,8 @@ shared machine hits every case alike):
 - ``env``, ``env lean``, ``env unfused``, ``env lean unfused``: the task env
   (``make_env(task, airframe, num_envs=N, backend, seed=0, decimation=d, lean=, fused=)``).
 
-Every env (the floor too) is stepped by ``falcon_rl.bench.env_stepper``: ``step_and_maybe_reset`` with a
+Every env (the floor too) is stepped by ``falcon_rl.evaluation.bench.env_stepper``:
+``step_and_maybe_reset`` with a
 zero action, as a rollout does. Each case gets ``--warmup`` untimed steps, then one timed block per
 round (``--trials`` rounds, the case order rotated each round); a block is ``--steps`` steps or more,
 enough to last ``--block-s``. Reported: median ms per env step, min-max over the blocks, env-steps/s,
@@ -57,8 +58,9 @@ from torchrl.envs import EnvBase
 from tqdm import tqdm
 
 from falcon_rl import make_env
-from falcon_rl.bench import BenchCase, _cpu_name, _time_blocks, env_stepper, plot
+from falcon_rl.airframe import DEFAULT_AIRFRAME
 from falcon_rl.envs.tasks import TERMINATION_REASONS
+from falcon_rl.evaluation.bench import BenchCase, _cpu_name, _time_blocks, env_stepper, plot
 
 #: Case label -> (kind, make_env options); kind in "physics", "physics checked", "torchrl", "torchrl new",
 #: "fused", "fused graph", "reset", "env".
@@ -306,7 +308,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     """Command-line options (see the module docstring)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--task", default="altitude")
-    parser.add_argument("--airframe", default="volantex_ranger")
+    parser.add_argument("--airframe", default=DEFAULT_AIRFRAME)
     parser.add_argument("--backend", default="warp")
     parser.add_argument("--device", default="cpu")
     parser.add_argument("--envs", default=None, help="comma list of env counts (default: 1,64,1024,4096; "

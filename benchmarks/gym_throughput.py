@@ -12,7 +12,7 @@ a shared machine spreads over all cases. The env cases step uniform random actio
 fixed stream) and reset the finished episodes as a Gymnasium user does (the single env by ``reset()``,
 the vector envs by their SAME_STEP autoreset), so resets and their infos are in the figures. The
 physics case steps the trim command, the env-core case ``FixedWingEnv.step_tensors`` (no resets,
-no host arrays). JSBSim runs ``FGFDMExec.run()`` once per 10 ms physics step (``falcon_rl.bench``'s
+no host arrays). JSBSim runs ``FGFDMExec.run()`` once per 10 ms physics step (``falcon_rl.evaluation.bench``'s
 baseline) and counts ``decimation`` runs as one env step. Reported per case: env-steps/s median and
 min-max over the rounds, and its ratios to the physics floor at the same N, to JSBSim and to the
 TorchRL path of the same env, each the median over the rounds of the ratio within a round (on a
@@ -34,10 +34,11 @@ import gymnasium as gym
 import numpy as np
 import torch
 
-from falcon_rl.bench import BenchConfig, time_jsbsim
+from falcon_rl.airframe import DEFAULT_AIRFRAME
 from falcon_rl.envs import make_env
 from falcon_rl.envs.gym import GYM_IDS, CoreAircraftEnv, register_gym_envs
-from falcon_rl.envs.gym_vector import FalconVectorEnv
+from falcon_rl.envs.gym.vector import FalconVectorEnv
+from falcon_rl.evaluation.bench import BenchConfig, time_jsbsim
 
 #: A block runs ``steps`` env steps.
 Block = Callable[[int], None]
@@ -112,7 +113,7 @@ def physics_block(task: str, num_envs: int, args: argparse.Namespace) -> tuple[B
 
 def sb3_block(num_envs: int, options: dict) -> tuple[Block, gym.spaces.Box]:
     """Steps of ``FalconSB3VecEnv`` (no info keys) as SB3's rollout drives it."""
-    from falcon_rl.envs.sb3 import FalconSB3VecEnv
+    from falcon_rl.envs.gym.sb3 import FalconSB3VecEnv
 
     venv = FalconSB3VecEnv.make(num_envs=num_envs, seed=0, **options)
     venv.reset()
@@ -223,7 +224,7 @@ def report(cases: list[Case], jsbsim: Case) -> str:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--task", default="altitude")
-    parser.add_argument("--airframe", default="navion")
+    parser.add_argument("--airframe", default=DEFAULT_AIRFRAME)
     parser.add_argument("--envs", type=int, default=1024, help="env count of the vector cases")
     parser.add_argument("--backend", default="warp")
     parser.add_argument("--device", default="cpu")

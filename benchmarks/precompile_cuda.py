@@ -27,6 +27,7 @@ import warp as wp
 from tqdm import tqdm
 
 from falcon_rl import make_env
+from falcon_rl.airframe import DEFAULT_AIRFRAME
 
 
 def task_modules(task: str, airframe: str) -> list[Any]:
@@ -44,7 +45,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--arch", type=int, required=True, help="CUDA compute capability x 10, e.g. 90")
     parser.add_argument("--tasks", default="altitude", help="comma list of tasks")
-    parser.add_argument("--airframe", default="volantex_ranger")
+    parser.add_argument("--airframe", default=DEFAULT_AIRFRAME)
     parser.add_argument("--ptx", action="store_true", help="PTX instead of CUBIN")
     args = parser.parse_args(argv)
     modules: dict[str, Any] = {}

@@ -33,8 +33,9 @@ from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv
 
+from falcon_rl.airframe import DEFAULT_AIRFRAME
 from falcon_rl.envs.gym import GYM_IDS, register_gym_envs
-from falcon_rl.envs.sb3 import FalconSB3VecEnv
+from falcon_rl.envs.gym.sb3 import FalconSB3VecEnv
 
 
 class RolloutTimer(BaseCallback):
@@ -104,7 +105,7 @@ def report(cases: list[Case]) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--task", default="altitude")
-    parser.add_argument("--airframe", default="navion")
+    parser.add_argument("--airframe", default=DEFAULT_AIRFRAME)
     parser.add_argument("--envs", default="1,64,256,1024", help="comma list of env counts of the adapter")
     parser.add_argument("--backend", default="warp")
     parser.add_argument("--device", default="cpu")

@@ -47,9 +47,9 @@ sys.path.insert(0, str(Path(__file__).parent))
 import env_step  # the sibling benchmarks
 import gym_throughput
 
-from falcon_rl.bench import _cpu_name
 from falcon_rl.envs import task_spec
 from falcon_rl.envs.tasks.altitude import ALTITUDE_SOLVED
+from falcon_rl.evaluation.bench import _cpu_name
 from falcon_rl.recipes.selection import conditions_met, parse_stop_when
 
 

@@ -21,9 +21,8 @@ ORDER: tuple[str, ...] = ("airframe", "physics", "recording", "envs", "envs.task
                           "policies", "validation", "derive", "recipes", "evaluation", "experiment", "viz",
                           "bridges", "modules")
 
-#: Not in the API reference: the CLI subcommands have the CLI reference page; ``objectives`` is the
-#: deprecated alias of ``recipes`` (importing it warns).
-SKIPPED: frozenset[str] = frozenset({"commands", "objectives"})
+#: Not in the API reference: the CLI subcommands have the CLI reference page.
+SKIPPED: frozenset[str] = frozenset({"commands"})
 
 #: Top-level modules that get a page of their own; the others share the "modules" page.
 OWN_PAGE: frozenset[str] = frozenset({"airframe", "recording"})

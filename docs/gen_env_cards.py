@@ -174,7 +174,7 @@ def env_facts(env: Any, spec: Any) -> dict[str, Any]:
     """Numbers of a built env: physics dt, decimation, control rate, horizon."""
     base = getattr(env, "base_env", env)
     dt = float(base.config.dt)
-    control_dt = float(getattr(base, "control_dt", getattr(base, "env_dt", dt)))
+    control_dt = float(getattr(base, "control_dt", dt))
     return {"dt": dt, "control_dt": control_dt, "decimation": round(control_dt / dt),
             "steps": int(base.max_episode_steps), "seconds": float(base.task.episode_seconds),
             "integrator": base.config.integrator, "ground_effect": base.config.ground_effect}

@@ -15,11 +15,12 @@ import matplotlib.pyplot as plt
 import torch
 
 from falcon_rl import Simulator, load_airframe, trim_level
+from falcon_rl.airframe import DEFAULT_AIRFRAME
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--airframe", default="volantex_ranger")
+    parser.add_argument("--airframe", default=DEFAULT_AIRFRAME)
     parser.add_argument("--out", default="runs/doublet.png")
     args = parser.parse_args()
 

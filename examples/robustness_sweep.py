@@ -20,6 +20,7 @@ import json
 
 import torch
 
+from falcon_rl.airframe import DEFAULT_AIRFRAME
 from falcon_rl.evaluation.controllers import reused_controller
 from falcon_rl.evaluation.robustness import FAMILIES, robustness_grid
 from falcon_rl.transforms.presets import GRID
@@ -52,7 +53,7 @@ def plot(results: dict, path: str, airframe: str, controller: str) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--airframe", default="navion")
+    parser.add_argument("--airframe", default=DEFAULT_AIRFRAME)
     parser.add_argument("--controller", default="lqr", help="lqr, mppi, trim, ppo (shipped) or a policy file")
     parser.add_argument("--envs", type=int, default=32)
     parser.add_argument("--seconds", type=float, default=5.0)

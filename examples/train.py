@@ -13,7 +13,8 @@ from __future__ import annotations
 
 import argparse
 
-from falcon_rl.envs import TASKS
+from falcon_rl.airframe import DEFAULT_AIRFRAME
+from falcon_rl.envs.tasks import task_names
 from falcon_rl.recipes import ppo, sac, td3
 
 RECIPES = {"ppo": ppo, "sac": sac, "td3": td3}
@@ -22,8 +23,8 @@ RECIPES = {"ppo": ppo, "sac": sac, "td3": td3}
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--algorithm", choices=sorted(RECIPES), default="ppo")
-    parser.add_argument("--task", choices=sorted(TASKS), default="altitude")
-    parser.add_argument("--airframe", default="volantex_ranger")
+    parser.add_argument("--task", choices=task_names(), default="altitude")
+    parser.add_argument("--airframe", default=DEFAULT_AIRFRAME)
     parser.add_argument("--frames", type=int, default=None, help="default: the recipe's")
     parser.add_argument("--envs", type=int, default=None, help="default: the recipe's")
     parser.add_argument("--seed", type=int, default=0)

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from .airframe_tables import AERO_OUTPUTS, TABLE_OUTPUTS, TABLE_VARIABLES, TableSet, TableTerm, parse_terms
+from .airframe_terms import AERO_OUTPUTS, TABLE_OUTPUTS, TABLE_VARIABLES, TableSet, TableTerm, parse_terms
 from .constants import G0
 
 #: Largest power of one variable in an aero monomial (the Warp twin tabulates powers 0..6).
@@ -172,6 +172,11 @@ class Airframe:
             "cruise_speed_mps": self.envelope.cruise_speed,
             "max_speed_mps": self.envelope.max_speed,
         }
+
+
+#: The airframe every entry point flies when none is named (make_env, the Gymnasium ids, the CLI, the
+#: recipes, the benchmarks): the Volantex Ranger, the paper's small UAV and the speed targets' airframe.
+DEFAULT_AIRFRAME = "volantex_ranger"
 
 
 def list_airframes() -> list[str]:

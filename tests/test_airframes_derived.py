@@ -16,7 +16,7 @@ from falcon_rl.airframe import Airframe, parse_airframe
 from falcon_rl.cli import main
 from falcon_rl.derive.fit import GROUPS, evaluate, fit_coefficient
 from falcon_rl.derive.geometry import load_geometry
-from falcon_rl.evaluation.ground_effect_table import ground_effect_table
+from falcon_rl.evaluation.ground_effect_trim import ground_effect_table
 from falcon_rl.physics.ground_effect import phillips_hunsaker
 
 ROOT = Path(__file__).resolve().parent.parent / "airframes"

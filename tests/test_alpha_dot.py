@@ -24,8 +24,8 @@ from falcon_rl.physics import state as S
 from falcon_rl.physics._warp import init_warp, wp
 from falcon_rl.physics.atmosphere import isa_density
 from falcon_rl.physics.dynamics import air_data, derivative
+from falcon_rl.physics.interpolated_terms import has_alpha_dot_terms
 from falcon_rl.physics.params import bind_warp_params, build_params
-from falcon_rl.physics.tables import has_alpha_dot_terms
 
 N = 64
 STATE_SIZE = S.THROTTLE_START + 1  # one motor

@@ -60,7 +60,7 @@ CLI_CASES = [
     row("trim height zero", "trim --airframe navion --height 0", "--height: '0' must be in (0, 20000] m"),
     row("trim height huge", "trim --airframe navion --height 1e7", "--height: '1e7' must be in (0, 20000] m"),
     row("trim height 400 digits", f"trim --airframe navion --height {BIG}", "is not a finite number"),
-    row("trim ground-effect model", "trim --airframe navion --ground-effect-model wall", "invalid choice: 'wall'"),
+    row("trim ground-effect model", "trim --airframe navion --ground-effect wall", "invalid choice: 'wall'"),
     row("trim below stall", "trim --airframe navion --airspeed 15",
         "below the stall speed 25.26 m/s (the wing stalls at alpha 20.0 deg)"),
     row("trim saturated elevator", "trim --airframe navion --airspeed 0.001",
@@ -76,7 +76,7 @@ CLI_CASES = [
         f"--out '{UNWRITABLE}' is not a writable directory (No such file or directory)"),
     row("ge-table out is a file", "ge-table --airframe navion --out {file}", "is not a writable directory"),
     row("ge-table airframe is a folder", "ge-table --airframe {dir_json}", "dir.json: a directory"),
-    row("ge-table model", "ge-table --airframe navion --ground-effect-model wall", "invalid choice: 'wall'"),
+    row("ge-table model", "ge-table --airframe navion --ground-effect wall", "invalid choice: 'wall'"),
     # eval
     row("eval no controller", "eval", "the following arguments are required: --controller"),
     row("eval unknown task", "eval --controller trim --task hover", "invalid choice: 'hover'"),

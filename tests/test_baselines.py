@@ -63,7 +63,7 @@ def test_gain_schedules_stabilise_every_trim_point(name, request):
 def test_altitude_lqr_climbs_to_the_reference(ranger):
     env = make_env("altitude", "volantex_ranger", num_envs=4, seed=3, episode_seconds=12.0, backend="warp",
                    decimation=1)
-    policy = AltitudeLQR(ranger, dt=env.env_dt)
+    policy = AltitudeLQR(ranger, dt=env.control_dt)
     with torch.no_grad():
         rollout = env.rollout(1200, policy, break_when_any_done=False)
     assert not rollout["next", "terminated"].any()
@@ -148,7 +148,7 @@ def test_mppi_reads_the_maneuver_stream_ahead():
     table = env.task.table
     assert ref["bank"].shape == (policy.horizon, 2 * 4)
     for j in (0, policy.horizon - 1):
-        row = table[300 + round((j + 1) * 0.1 / env.env_dt)]
+        row = table[300 + round((j + 1) * 0.1 / env.control_dt)]
         assert torch.allclose(ref["bank"][j], row[0].expand(8))
         assert torch.allclose(ref["airspeed"][j], row[2].expand(8))
     assert ref["bank"][-1, 0] != ref["bank"][0, 0]  # the s-turn's bank changes over the horizon
@@ -212,7 +212,7 @@ def test_mppi_attitude_height_profile_integrates_the_climb_commands():
     policy = MPPI(env, MPPIConfig(samples=2, horizon_seconds=2.0, plan_dt=0.1))
     td = env.reset()
     policy.start_height.fill_(100.0)
-    table, dt = env.task.table, env.env_dt
+    table, dt = env.task.table, env.control_dt
     td["state", "time"] = torch.full_like(td["state", "time"], 20.0)  # mid-helix: climbing
     ref = policy._references(td)
     for j in (0, policy.horizon - 1):

@@ -31,7 +31,7 @@ def test_trim_json_navion_reference_condition(capsys, navion):
     is the datum attitude in cruise (wing at +2 deg incidence: a small nose-down attitude) and the
     elevator is a few degrees at most (stabilizer incidence set for cruise)."""
     code, doc, _ = run_json(capsys, "trim", "--airframe", "navion", "--airspeed", "53.64",
-                            "--height", "30", "--no-ground-effect")
+                            "--height", "30", "--ground-effect", "off")
     assert code == 0
     import torch
 

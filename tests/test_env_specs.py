@@ -9,8 +9,9 @@ from torchrl.envs.utils import check_env_specs
 
 import falcon_rl
 from falcon_rl import Simulator
-from falcon_rl.envs import TASKS, FixedWingEnv, make_env
+from falcon_rl.envs import FixedWingEnv, make_env
 from falcon_rl.envs.maneuvers import MANEUVERS
+from falcon_rl.envs.tasks import task_names
 
 
 def warp_available() -> bool:
@@ -25,7 +26,7 @@ requires_warp = pytest.mark.skipif(not warp_available(), reason="warp backend no
 
 
 @pytest.mark.parametrize("airframe", ["navion", "volantex_ranger"])
-@pytest.mark.parametrize("task", sorted(TASKS))
+@pytest.mark.parametrize("task", task_names())
 def test_check_env_specs(task: str, airframe: str) -> None:
     env = make_env(task, airframe, num_envs=4, seed=3)
     assert isinstance(env, EnvBase) and env.batch_locked

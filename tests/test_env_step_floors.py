@@ -81,5 +81,5 @@ def test_the_partial_reset_case_resets_one_env_per_call(benchmark_script):
 
 def test_the_cuda_precompile_finds_the_modules_an_env_launches(benchmark_script):
     names = [m.name for m in benchmark_script("precompile_cuda").task_modules("altitude", "volantex_ranger")]
-    assert names[0] == "falcon_rl.physics.warp_kernels" and "falcon_rl.envs.tasks.altitude_warp" in names
+    assert names[0] == "falcon_rl.physics.warp_kernels" and "falcon_rl.envs.tasks.altitude.kernels" in names
     assert len(names) == 3 and any("env_step" in name for name in names)

@@ -53,7 +53,7 @@ def test_airframe_flies_task(airframe: str, task: str, backend: str):
     env = make_env(task, airframe, num_envs=2, backend=backend, seed=0, decimation=DECIMATION)
     check_env_specs(env, seed=0)
     policy = controller(env, airframe, task)
-    steps = round(SECONDS / env.env_dt)
+    steps = round(SECONDS / env.control_dt)
     with torch.no_grad():
         rollout = env.rollout(steps, policy, break_when_any_done=False)
     assert rollout.shape == (2, steps)

@@ -25,9 +25,7 @@ from falcon_rl.experiment.cells import (
     register_cell_function,
     run_cell,
 )
-from falcon_rl.experiment.runners import CellsFailedError, run_cells
-from falcon_rl.experiment.statistics import Aggregate, aggregate, group_cells
-from falcon_rl.experiment.tables import (
+from falcon_rl.experiment.results import (
     RESULTS_FORMAT,
     Column,
     Row,
@@ -37,6 +35,8 @@ from falcon_rl.experiment.tables import (
     rows_from_groups,
     write_results,
 )
+from falcon_rl.experiment.runners import CellsFailedError, run_cells
+from falcon_rl.experiment.statistics import Aggregate, aggregate, group_cells
 
 VERSION = {"falcon_rl": "0.1.0", "commit": None}
 #: Calls of the toy cell function in this process (the resume tests count them).

@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 import torch
 
-from falcon_rl.evaluation.ground_effect_table import ground_effect_table
+from falcon_rl.evaluation.ground_effect_trim import ground_effect_table
 from falcon_rl.physics.ground_effect import phillips_hunsaker
 
 

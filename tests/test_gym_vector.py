@@ -20,7 +20,7 @@ from torchrl.envs.utils import step_mdp
 import falcon_rl  # noqa: F401  (registers falcon_rl/<Task>-v0)
 from falcon_rl.envs import make_env
 from falcon_rl.envs.gym import GYM_IDS
-from falcon_rl.envs.gym_vector import FalconVectorEnv
+from falcon_rl.envs.gym.vector import FalconVectorEnv
 from falcon_rl.envs.tasks import TERMINATION_CODE
 
 ALTITUDE = "falcon_rl/Altitude-v0"

@@ -8,7 +8,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from falcon_rl.airframe_tables import TABLE_VARIABLES
+from falcon_rl.airframe_terms import TABLE_VARIABLES
 from falcon_rl.validation.jsbsim_engine import EngineMap
 from falcon_rl.validation.jsbsim_functions import multilinear, parse_function
 from falcon_rl.validation.jsbsim_import_build import _flight

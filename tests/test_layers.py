@@ -23,16 +23,15 @@ PACKAGE_DIR = Path(__file__).resolve().parents[1] / ROOT
 #: Bottom to top: a module may import modules of its own layer and of the layers below. An entry names a
 #: module or a package (and everything in it); the root package (the public facade) is on top.
 #: ``validation`` and ``derive`` import only physics and the airframe, so they sit on the lowest layer that
-#: allows it; ``objectives`` is the deprecated alias of ``recipes``.
+#: allows it.
 LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("constants", ("falcon_rl.constants", "falcon_rl._lazy", "falcon_rl.atomic_files")),
-    ("airframe", ("falcon_rl.airframe", "falcon_rl.airframe_tables")),
+    ("airframe", ("falcon_rl.airframe", "falcon_rl.airframe_terms")),
     ("physics / recording", ("falcon_rl.physics", "falcon_rl.recording", "falcon_rl.recording_schema")),
     ("envs / transforms / baselines / policies / validation / derive",
      ("falcon_rl.envs", "falcon_rl.transforms", "falcon_rl.baselines", "falcon_rl.policies",
       "falcon_rl.validation", "falcon_rl.derive")),
-    ("recipes / evaluation / bench", ("falcon_rl.recipes", "falcon_rl.objectives", "falcon_rl.evaluation",
-                                      "falcon_rl.bench")),
+    ("recipes / evaluation", ("falcon_rl.recipes", "falcon_rl.evaluation")),
     ("experiment", ("falcon_rl.experiment",)),
     ("viz / bridges", ("falcon_rl.viz", "falcon_rl.bridges")),
     ("commands", ("falcon_rl.commands", "falcon_rl.cli", ROOT)),

@@ -11,7 +11,7 @@ from falcon_rl import load_airframe
 from falcon_rl.airframe import SURFACES
 from falcon_rl.physics._warp import init_warp, warp_available, wp
 from falcon_rl.physics.ground_effect import wing_constants
-from falcon_rl.physics.parameter_table import (
+from falcon_rl.physics.param_schema import (
     BuildOptions,
     Derivation,
     ParamRow,

@@ -9,9 +9,9 @@ import torch
 from torchrl.envs import TransformedEnv
 
 import falcon_rl
-from falcon_rl.envs.gym_record import RecordFlight, RecordFlightVector
+from falcon_rl.envs.gym.recorder import RecordFlight, RecordFlightVector
 from falcon_rl.recording import RECORDING_FORMAT, Recording, RecordingError, record_simulator
-from falcon_rl.transforms.record import FlightRecorder
+from falcon_rl.transforms.flight_recorder import FlightRecorder
 
 
 def small_recording(frames: int = 5, envs: int = 2) -> Recording:

@@ -11,7 +11,7 @@ from torchrl.envs import TransformedEnv
 from torchrl.envs.utils import check_env_specs
 
 import falcon_rl
-from falcon_rl.envs.gym_render import display_available
+from falcon_rl.envs.gym.render import display_available
 from falcon_rl.viz.pixels import FlightPixels
 
 

@@ -22,8 +22,8 @@ from test_gym import assert_identical  # noqa: E402
 
 import falcon_rl  # noqa: E402, F401  (registers falcon_rl/<Task>-v0)
 from falcon_rl.envs.gym import GYM_IDS  # noqa: E402
-from falcon_rl.envs.gym_vector import FalconVectorEnv  # noqa: E402
-from falcon_rl.envs.sb3 import FalconSB3VecEnv  # noqa: E402
+from falcon_rl.envs.gym.sb3 import FalconSB3VecEnv  # noqa: E402
+from falcon_rl.envs.gym.vector import FalconVectorEnv  # noqa: E402
 from falcon_rl.envs.tasks import TERMINATION_CODE  # noqa: E402
 
 #: Five env steps per episode (10 ms control).
@@ -158,7 +158,7 @@ def test_ppo_trains_on_the_batched_adapter() -> None:
 def test_missing_stable_baselines3_is_one_clear_import_error(monkeypatch: pytest.MonkeyPatch) -> None:
     for name in [name for name in sys.modules if name.split(".")[0] == "stable_baselines3"]:
         monkeypatch.setitem(sys.modules, name, None)
-    monkeypatch.delitem(sys.modules, "falcon_rl.envs.sb3")
+    monkeypatch.delitem(sys.modules, "falcon_rl.envs.gym.sb3")
     with pytest.raises(ImportError, match="needs stable-baselines3: pip install stable-baselines3") as error:
-        importlib.import_module("falcon_rl.envs.sb3")
+        importlib.import_module("falcon_rl.envs.gym.sb3")
     assert "\n" not in str(error.value)

@@ -18,15 +18,15 @@ import torch
 
 from falcon_rl import Simulator, load_airframe
 from falcon_rl.airframe import AERO_VARIABLES, AirframeError, parse_airframe
-from falcon_rl.airframe_tables import TABLE_VARIABLES
+from falcon_rl.airframe_terms import TABLE_VARIABLES
 from falcon_rl.physics import state as S
 from falcon_rl.physics._warp import init_warp, wp
 from falcon_rl.physics.aero import aero_forces, table_variables
 from falcon_rl.physics.dynamics import derivative
 from falcon_rl.physics.ground_effect import GE_MODES
+from falcon_rl.physics.interpolated_terms import has_terms, table_outputs
 from falcon_rl.physics.params import bind_warp_params, build_params
 from falcon_rl.physics.propulsion import motor_thrust
-from falcon_rl.physics.tables import has_terms, table_outputs
 
 N = 256
 

@@ -223,7 +223,7 @@ class AltitudeLQR(_LQRPolicy):
     def from_env(cls, env: FixedWingEnv) -> AltitudeLQR:
         """The LQRI of ``env``'s airframe, control step, ground-effect mode, device and dtype (any task
         that publishes ("task", "reference_altitude") and ("task", "reference_climb_rate"))."""
-        return cls(env.sim.airframe, env.env_dt, env.config.ground_effect, env.device, env.sim.dtype)
+        return cls(env.sim.airframe, env.control_dt, env.config.ground_effect, env.device, env.sim.dtype)
 
     def forward(self, td: TensorDictBase) -> TensorDictBase:
         v = flat_scalars(td)  # [N] scalars
@@ -256,7 +256,7 @@ class AttitudeLQR(_LQRPolicy):
     def from_env(cls, env: FixedWingEnv) -> AttitudeLQR:
         """The LQRI of ``env``'s airframe, control step, device and dtype (any task that publishes the
         ("task", ...) bank, climb-rate and airspeed commands)."""
-        return cls(env.sim.airframe, env.env_dt, env.device, env.sim.dtype)
+        return cls(env.sim.airframe, env.control_dt, env.device, env.sim.dtype)
 
     def forward(self, td: TensorDictBase) -> TensorDictBase:
         v = flat_scalars(td)  # [N] scalars

@@ -123,9 +123,9 @@ class MPPI(TensorDictModuleBase):
         lag = max(m.time_constant for m in env.sim.airframe.motors)
         self.horizon_seconds = max(cfg.horizon_seconds, 2.0 * lag + 1.0)
         self.horizon = max(1, round(self.horizon_seconds / cfg.plan_dt))
-        self.env_dt = env.env_dt
-        self.replan_every = max(1, round(cfg.replan_seconds / env.env_dt))
-        self.plan_hold = max(1, round(cfg.plan_dt / env.env_dt))
+        self.control_dt = env.control_dt
+        self.replan_every = max(1, round(cfg.replan_seconds / env.control_dt))
+        self.plan_hold = max(1, round(cfg.plan_dt / env.control_dt))
         if self.replan_every % self.plan_hold:
             raise ValueError(f"replan_seconds ({cfg.replan_seconds}) must be a whole number of planning "
                              f"steps of plan_dt ({cfg.plan_dt})")
@@ -157,7 +157,7 @@ class MPPI(TensorDictModuleBase):
         #: integral of the climb-rate error (the LQRI's climb integrator, here a cost term).
         self.climb_profile: torch.Tensor | None = None
         if self.command_table is not None:
-            climbed = torch.cumsum(self.command_table[:, 1], dim=0) * env.env_dt
+            climbed = torch.cumsum(self.command_table[:, 1], dim=0) * env.control_dt
             self.climb_profile = torch.cat([climbed.new_zeros(1), climbed[:-1]])
         self.start_height = torch.zeros(self.n, device=env.device, dtype=env.sim.dtype)
         #: Wall-clock and process CPU seconds of each replan.
@@ -210,8 +210,8 @@ class MPPI(TensorDictModuleBase):
                    "climb": torch.where(remaining > 0, rate, torch.zeros_like(remaining)),
                    "airspeed": torch.full_like(remaining, self.trim_airspeed)}
         elif self.command_table is not None:
-            now = torch.round(td["state", "time"] / self.env_dt).long()  # [N]
-            ahead = torch.round(tau[:, 0] / self.env_dt).long()[:, None]  # [H, 1]
+            now = torch.round(td["state", "time"] / self.control_dt).long()  # [N]
+            ahead = torch.round(tau[:, 0] / self.control_dt).long()[:, None]  # [H, 1]
             index = (now + ahead).clamp(max=self.command_table.shape[0] - 1)  # [H, N]
             rows = self.command_table[index]  # [H, N, 3]
             ref = {"bank": rows[..., 0], "climb": rows[..., 1], "airspeed": rows[..., 2],

@@ -49,7 +49,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from ..airframe import Airframe, load_airframe
+from ..airframe import DEFAULT_AIRFRAME, Airframe, load_airframe
 from ..constants import KT
 from ..physics import Simulator
 from ..physics import state as S
@@ -91,7 +91,7 @@ class XPlaneStandIn:
         ground_effect: as the simulator's.
     """
 
-    def __init__(self, airframe: Airframe | str = "volantex_ranger", host: str = LOOPBACK, port: int = 0, *,
+    def __init__(self, airframe: Airframe | str = DEFAULT_AIRFRAME, host: str = LOOPBACK, port: int = 0, *,
                  mode: str = "lockstep", frame_seconds: float = 0.05, dt: float = 0.01, backend: str = "warp",
                  reference: ReferencePoint | None = None, ground_effect: bool | str = True) -> None:
         if mode not in ("lockstep", "realtime"):

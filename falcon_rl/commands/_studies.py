@@ -122,7 +122,7 @@ def write_study(study: str, cells: list, results: dict, failures: dict, folder: 
         rows_from_groups,
         write_results,
     )
-    from ..experiment.study_tables import STUDY_TABLES
+    from ..experiment.study_layouts import STUDY_TABLES
 
     folder.mkdir(parents=True, exist_ok=True)
     groups = group_cells(cells, results)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from ..airframe import DEFAULT_AIRFRAME
 from ._common import (
     UsageError,
     bounded_float,
@@ -44,7 +45,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="timed trials per case (>= 5)")
     parser.add_argument("--warmup", type=nonnegative_int, default=10, help="untimed steps before the trials")
     parser.add_argument("--device", default="cpu", help="cpu or cuda")
-    parser.add_argument("--airframe", default="navion")
+    parser.add_argument("--airframe", default=DEFAULT_AIRFRAME)
     parser.add_argument("--integrator", default="rk4", choices=("rk4", "euler"))
     parser.add_argument("--dt", type=bounded_float(0.0, 0.1, "s"), default=0.01, help="s (default 0.01)")
     parser.add_argument("--baseline", choices=("jsbsim",), default=None,
@@ -75,7 +76,7 @@ def _parse(args: argparse.Namespace) -> tuple[list[str], list[int]]:
 
 def run(args: argparse.Namespace) -> int:
     from ..airframe import load_airframe
-    from ..bench import BenchConfig, format_table, plot, run_bench
+    from ..evaluation.bench import BenchConfig, format_table, plot, run_bench
 
     backends, envs = _parse(args)
     load_airframe(args.airframe)  # fail early on a bad name

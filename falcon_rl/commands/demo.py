@@ -25,6 +25,7 @@ import time
 from pathlib import Path
 from typing import TextIO
 
+from ..airframe import DEFAULT_AIRFRAME
 from ..atomic_files import write_atomic
 from ._common import (
     bounded_int,
@@ -100,7 +101,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", default="runs/demo",
                         help=f"output folder (report.md, results.json, figures, GIF, ACMI and {LOG_NAME}, "
                              "the progress: a line per stage, also on stderr when it is not a terminal)")
-    parser.add_argument("--airframe", default="volantex_ranger", help="airframe of the altitude protocol")
+    parser.add_argument("--airframe", default=DEFAULT_AIRFRAME, help="airframe of the altitude protocol")
     parser.add_argument("--controllers", default="ppo,lqr,mppi",
                         help=f"comma list of {', '.join(CONTROLLERS)} (default ppo,lqr,mppi)")
     parser.add_argument("--episodes", type=positive_int, default=100, help="protocol episodes per controller")
@@ -186,7 +187,7 @@ def _trims_and_ground_effect(out: Path, progress: bool) -> tuple[list[str], dict
     from tqdm import tqdm
 
     from ..airframe import list_airframes, load_airframe
-    from ..evaluation.ground_effect_table import format_table, ground_effect_table, rows_as_dicts
+    from ..evaluation.ground_effect_trim import format_table, ground_effect_table, rows_as_dicts
     from ..physics.trim import trim_level
     from ..viz.ground_effect import plot_ground_effect
 

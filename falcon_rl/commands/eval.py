@@ -21,6 +21,7 @@ import sys
 from datetime import datetime, timezone
 from pathlib import Path
 
+from ..airframe import DEFAULT_AIRFRAME
 from ._common import (
     UsageError,
     add_flight_arguments,
@@ -64,7 +65,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
     parser.add_argument("--controller", required=True, help=controllers_help())
     parser.add_argument("--task", choices=task_names(), default="altitude")
-    parser.add_argument("--airframe", default="volantex_ranger", help="shipped name or path to a JSON file")
+    parser.add_argument("--airframe", default=DEFAULT_AIRFRAME, help="shipped name or path to a JSON file")
     parser.add_argument("--policy-seed", type=nonnegative_int, default=0,
                         help="with ppo, sac or td3: the training seed of the shipped policy (default 0)")
     parser.add_argument("--episodes", type=positive_int, default=20, help="episodes (attitude: per maneuver)")

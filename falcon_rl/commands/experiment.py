@@ -30,6 +30,7 @@ import argparse
 import json
 from pathlib import Path
 
+from ..airframe import DEFAULT_AIRFRAME
 from ..atomic_files import write_atomic
 from ._common import (
     add_flight_arguments,
@@ -68,7 +69,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--ray-address", default=None,
                         help="studies, --runner ray: a cluster address or 'auto' (default: a local Ray)")
     parser.add_argument("--tasks", default="altitude,attitude", help="ablation: comma list of tasks")
-    parser.add_argument("--airframe", default="volantex_ranger",
+    parser.add_argument("--airframe", default=DEFAULT_AIRFRAME,
                         help="ablation: shipped name or path to a JSON file")
     parser.add_argument("--controllers", default=None,
                         help="comma list (ablation default lqr: the tasks' baselines, ppo, policy files; "

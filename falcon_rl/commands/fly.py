@@ -27,6 +27,7 @@ import argparse
 import sys
 from typing import Any
 
+from ..airframe import DEFAULT_AIRFRAME
 from ._common import (
     UsageError,
     add_flight_arguments,
@@ -59,7 +60,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
     parser.add_argument("--controller", required=True, help=controllers_help())
     parser.add_argument("--task", choices=task_names(), default="altitude")
-    parser.add_argument("--airframe", default="volantex_ranger", help="shipped name or path to a JSON file")
+    parser.add_argument("--airframe", default=DEFAULT_AIRFRAME, help="shipped name or path to a JSON file")
     parser.add_argument("--maneuver", choices=MANEUVERS, default=None,
                         help="command stream of the attitude task (default: its random training stream)")
     parser.add_argument("--envs", type=positive_int, default=1, help="aircraft flown (and recorded)")
@@ -156,7 +157,7 @@ def fly(args: argparse.Namespace, airframe: str, options: dict, progress: bool =
     from ..envs import make_env
     from ..evaluation.controllers import make_controller
     from ..evaluation.protocols import PROTOCOL_DECIMATION
-    from ..transforms.record import FlightRecorder
+    from ..transforms.flight_recorder import FlightRecorder
 
     length = {} if args.seconds is None else {"episode_seconds": args.seconds}
     env = make_env(args.task, airframe, num_envs=args.envs, backend=args.backend, device=args.device,

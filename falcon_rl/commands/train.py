@@ -32,6 +32,7 @@ import ast
 import importlib.util
 import math
 
+from ..airframe import DEFAULT_AIRFRAME
 from ._common import (
     UsageError,
     check_device,
@@ -48,7 +49,7 @@ HELP = "train PPO, SAC or TD3 on a task (checkpoints, policy export, final evalu
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("algorithm", choices=["ppo", "sac", "td3"])
     parser.add_argument("--task", default="altitude", help="altitude, attitude (or another task)")
-    parser.add_argument("--airframe", default="volantex_ranger")
+    parser.add_argument("--airframe", default=DEFAULT_AIRFRAME)
     parser.add_argument("--envs", type=positive_int, default=None,
                         help="parallel envs (default: the recipe's)")
     parser.add_argument("--frames", type=positive_int, default=None,

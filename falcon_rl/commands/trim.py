@@ -16,9 +16,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="m/s (default: cruise)")
     parser.add_argument("--height", type=bounded_float(0.0, MAX_HEIGHT, "m"), default=100.0,
                         help="m above ground (default 100)")
-    parser.add_argument("--no-ground-effect", action="store_true", help="switch ground effect off")
-    parser.add_argument("--ground-effect-model", choices=["induced", "paper"], default="induced",
-                        help="induced-drag-only correction (default) or the paper's whole-drag form")
+    parser.add_argument("--ground-effect", choices=["induced", "paper", "off"], default="induced",
+                        help="the Phillips-Hunsaker correction of the induced drag only (default), the "
+                             "paper's whole-drag form, or none")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -27,7 +27,7 @@ def run(args: argparse.Namespace) -> int:
 
     airframe = load_airframe(args.airframe)
     airspeed = airframe.envelope.cruise_speed if args.airspeed is None else args.airspeed
-    ge = False if args.no_ground_effect else args.ground_effect_model
+    ge = False if args.ground_effect == "off" else args.ground_effect
     row = trim_level(airframe, airspeed, args.height, ground_effect=ge).row(0)
     doc = {"airframe": airframe.name, "ground_effect": ge or "off", **row}
     text = "\n".join(f"{k:<26}{v:.6g}" if isinstance(v, float) else f"{k:<26}{v}"

@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from ..airframe import DEFAULT_AIRFRAME
 from ._common import (
     UsageError,
     bounded_float,
@@ -40,7 +41,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--controller", required=True,
                         help="a controller of the task (lqr, mppi, trim), ppo or a policy file")
     parser.add_argument("--task", choices=task_names(), default="altitude")
-    parser.add_argument("--airframe", default="volantex_ranger", help="shipped name or path to a JSON file")
+    parser.add_argument("--airframe", default=DEFAULT_AIRFRAME, help="shipped name or path to a JSON file")
     parser.add_argument("--host", default="127.0.0.1", help="X-Plane's address (default 127.0.0.1)")
     parser.add_argument("--port", type=bounded_int(1, 65535), default=49000, help="X-Plane's UDP port")
     parser.add_argument("--bind", default="127.0.0.1",

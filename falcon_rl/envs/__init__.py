@@ -18,15 +18,15 @@ if TYPE_CHECKING:
     from .factory import make_env
     from .fixed_wing import STATE_KEYS, FixedWingEnv, FixedWingEnvConfig
     from .gym import GYM_IDS, CoreAircraftEnv, register_gym_envs
-    from .gym_record import RecordFlight, RecordFlightVector
-    from .tasks import TASKS, Task, TaskConfig, TaskSpec, register_task, task_spec
+    from .gym.recorder import RecordFlight, RecordFlightVector
+    from .tasks import Task, TaskConfig, TaskSpec, register_task, task_spec
 
 #: Public name -> the submodule that defines it.
 _LAZY = {"make_env": "factory", "STATE_KEYS": "fixed_wing", "FixedWingEnv": "fixed_wing",
          "FixedWingEnvConfig": "fixed_wing", "GYM_IDS": "gym", "CoreAircraftEnv": "gym",
-         "register_gym_envs": "gym", "TASKS": "tasks", "Task": "tasks", "TaskConfig": "tasks",
+         "register_gym_envs": "gym", "Task": "tasks", "TaskConfig": "tasks",
          "TaskSpec": "tasks", "register_task": "tasks", "task_spec": "tasks",
-         "RecordFlight": "gym_record", "RecordFlightVector": "gym_record", }
+         "RecordFlight": "gym.recorder", "RecordFlightVector": "gym.recorder"}
 
 #: The built-in tasks' Gymnasium registrations, task -> (id, max_episode_steps), as ``register_gym_envs``
 #: makes them from the task registry (tests/test_startup.py checks that they agree).
@@ -38,9 +38,9 @@ BUILTIN_GYM_IDS: dict[str, tuple[str, int]] = {
     "trajectory": ("falcon_rl/Trajectory-v0", 800),
 }
 _ENTRY_POINT = "falcon_rl.envs.gym:CoreAircraftEnv"
-_VECTOR_ENTRY_POINT = "falcon_rl.envs.gym_vector:FalconVectorEnv"
+_VECTOR_ENTRY_POINT = "falcon_rl.envs.gym.vector:FalconVectorEnv"
 
-__all__ = ["BUILTIN_GYM_IDS", "GYM_IDS", "STATE_KEYS", "TASKS", "CoreAircraftEnv", "FixedWingEnv",
+__all__ = ["BUILTIN_GYM_IDS", "GYM_IDS", "STATE_KEYS", "CoreAircraftEnv", "FixedWingEnv",
            "FixedWingEnvConfig", "RecordFlight", "RecordFlightVector", "Task",
            "TaskConfig", "TaskSpec", "make_env", "register_gym_envs",
            "register_task", "task_spec"]

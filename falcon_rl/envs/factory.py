@@ -7,6 +7,7 @@ from dataclasses import fields, replace
 
 from torchrl.envs import Compose, EnvBase, TransformedEnv
 
+from ..airframe import DEFAULT_AIRFRAME
 from ..transforms.presets import robustness_transforms
 from .fixed_wing import FixedWingEnv, FixedWingEnvConfig
 from .tasks import task_spec
@@ -22,7 +23,7 @@ def unknown_options(task: str, unknown: list[str], env_fields: set[str], task_fi
                      f"task options: {sorted(task_fields)}")
 
 
-def make_env(task: str, airframe: str = "navion", num_envs: int = 1, backend: str = "warp",
+def make_env(task: str, airframe: str = DEFAULT_AIRFRAME, num_envs: int = 1, backend: str = "warp",
              device: str = "cpu", seed: int | None = None, *, sensors: object = None,
              obs_delay_ms: object = None, action_delay_ms: object = None, randomize: object = None,
              normalize: bool = False, **options) -> EnvBase:

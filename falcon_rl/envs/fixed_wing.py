@@ -44,7 +44,7 @@ from tensordict import TensorDict, TensorDictBase
 from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase
 
-from ..airframe import Airframe, load_airframe
+from ..airframe import DEFAULT_AIRFRAME, Airframe, load_airframe
 from ..physics import Simulator
 from ..physics.engine import fresh_seed, make_generator
 from ..physics.params import RANDOMIZABLE_PARAMETERS
@@ -85,7 +85,7 @@ class FixedWingEnvConfig:
     #: Task name, a registered task (``falcon_rl.envs.tasks.task_spec``).
     task: str = "altitude"
     #: Shipped airframe name or JSON path.
-    airframe: str = "navion"
+    airframe: str = DEFAULT_AIRFRAME
     num_envs: int = 1
     #: Simulator backend: "warp" (fused kernels, the fastest on CPU and GPU) or "torch" (the
     #: differentiable reference); the scipy reference runs one env, it works too.
@@ -148,7 +148,7 @@ class FixedWingEnv(EnvBase):
     =================================  ==========  ==================================================
     member                             shape       meaning; used by
     =================================  ==========  ==================================================
-    control_dt (alias env_dt)          float       s per env step (decimation x dt); sensors, delays
+    control_dt                         float       s per env step (decimation x dt); sensors, delays
     observe(state)                     [N, D]      the task's observation of a (measured) state,
                                                    without side effects; SensorTransform
     trim_action()                      [A]         trim command in the action channels; ActionDelay,
@@ -204,9 +204,9 @@ class FixedWingEnv(EnvBase):
                              compile=config.compile, warp_cpu_threads=config.warp_cpu_threads,
                              check_inputs=False)  # actions are checked by the env: no second check, no sync
         self.generator = make_generator(device, config.seed)
-        self.env_dt = config.dt * decimation
-        self.task = spec.task(task_config, self.sim, self.generator, self.env_dt, config.ground_effect)
-        self.max_episode_steps = max(1, round(self.task.episode_seconds / self.env_dt))
+        self.control_dt = config.dt * decimation
+        self.task = spec.task(task_config, self.sim, self.generator, self.control_dt, config.ground_effect)
+        self.max_episode_steps = max(1, round(self.task.episode_seconds / self.control_dt))
         self.step_count = torch.zeros(config.num_envs, dtype=torch.long, device=device)
         self._nominal_parameters = self.physical_parameters()
         self._seed_record: tuple[int, int] = (0, 0)
@@ -433,11 +433,6 @@ class FixedWingEnv(EnvBase):
         return TensorDict._new_unsafe(out, batch_size=batch, device=device)
 
     # ------------------------------------------------------------------ flight-env interface
-    @property
-    def control_dt(self) -> float:
-        """Seconds per env step (decimation x physics dt); ``env_dt`` is the same value."""
-        return self.env_dt
-
     def trim_action(self) -> torch.Tensor:
         """[A] the task's straight-and-level trim command in its action channels (a copy)."""
         return self.task.trim.command[self.task.channels].clone()

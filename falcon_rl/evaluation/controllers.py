@@ -72,8 +72,8 @@ def reused_controller(name: str, env: FixedWingEnv) -> TensorDictModuleBase:
     that build many envs of one airframe (the robustness grid, the ground-effect bands)."""
     if name != "lqr":
         return make_controller(name, env)
-    key = (env.config.task, env.sim.airframe.name, env.env_dt, str(env.config.ground_effect), str(env.device),
-           env.sim.dtype)
+    key = (env.config.task, env.sim.airframe.name, env.control_dt, str(env.config.ground_effect),
+           str(env.device), env.sim.dtype)
     if key not in _LQR_DESIGNS:
         _LQR_DESIGNS[key] = make_controller(name, env)
     return copy.deepcopy(_LQR_DESIGNS[key])

@@ -43,7 +43,7 @@ from ..physics import state as S
 from ..physics.params import build_params
 from ..physics.rotations import rotation_matrix
 from .controllers import reused_controller
-from .ground_effect_table import H_OVER_B, ground_effect_table
+from .ground_effect_trim import H_OVER_B, ground_effect_table
 
 ControllerFactory = Callable[[FixedWingEnv], TensorDictModuleBase]
 
@@ -217,8 +217,8 @@ def _fly_arm(airframe: str, factory: ControllerFactory, height: float, ground_ef
     sim = getattr(env, "base_env", env).sim
     policy = factory(env)
     steps = int(env.max_episode_steps)
-    env_dt = float(getattr(env, "env_dt", seconds / steps))
-    start = min(round(settle_seconds / env_dt), steps - 1)
+    control_dt = float(getattr(env, "control_dt", seconds / steps))
+    start = min(round(settle_seconds / control_dt), steps - 1)
     n = episodes
     thrust = torch.zeros(n, steps, dtype=torch.float64)
     h = torch.zeros(n, steps, dtype=torch.float64)

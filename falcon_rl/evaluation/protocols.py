@@ -40,7 +40,7 @@ from ..envs.layout import flat_scalars
 from ..envs.maneuvers import MANEUVERS
 from ..envs.tasks import ClimbDescendConfig
 from .metrics import altitude_metrics, attitude_metrics, summarize
-from .step_record import StepRecord
+from .rollout_storage import StepRecord
 from .tracking_metrics import climb_descend_metrics, path_following_metrics, trajectory_metrics
 
 ControllerFactory = Callable[[FixedWingEnv], TensorDictModuleBase]
@@ -161,7 +161,7 @@ def altitude_protocol(airframe: str, controller: str, factory: ControllerFactory
     summary["rmse_m"] = summary.pop("rmse")
     summary["settling_time_s"] = summary.pop("settling_time")
     settings = {"episodes": episodes, "seed": seed, "backend": backend, "device": device,
-                "episode_seconds": seconds, "dt": env.env_dt, **env_options}
+                "episode_seconds": seconds, "dt": env.control_dt, **env_options}
     traces = {"altitude": rollout.select(*ALTITUDE_TRACES)}
     return ProtocolResult("altitude", airframe, controller, summary, episode_metrics, traces, settings,
                           per_step)
@@ -183,7 +183,7 @@ def attitude_protocol(airframe: str, controller: str, factory: ControllerFactory
         policy = factory(env)
         steps = env.max_episode_steps
         if episode_seconds is not None:
-            steps = max(1, min(steps, round(episode_seconds / env.env_dt)))
+            steps = max(1, min(steps, round(episode_seconds / env.control_dt)))
         rollout, seconds = _rollout(env, policy, steps, f"{controller} {name} {airframe}")
         per_step.append(seconds)
         metrics = attitude_metrics(rollout)

@@ -53,7 +53,7 @@ from ..transforms.presets import (
 from .controllers import reused_controller
 from .metrics import first_episode_mask, survival
 from .protocols import PROTOCOL_DECIMATION
-from .step_record import StepRecord
+from .rollout_storage import StepRecord
 
 ControllerFactory = Callable[[FixedWingEnv], TensorDictModuleBase]
 

@@ -20,9 +20,7 @@ from .._lazy import lazy_exports
 if TYPE_CHECKING:
     from .cache import CellCache
     from .cells import CELL_FUNCTIONS, Cell, code_version, register_cell_function, run_cell
-    from .runners import CellsFailedError, run_cells
-    from .statistics import Aggregate, CellGroup, aggregate, group_cells
-    from .tables import (
+    from .results import (
         Column,
         Row,
         experiment_document,
@@ -31,6 +29,8 @@ if TYPE_CHECKING:
         rows_from_groups,
         write_results,
     )
+    from .runners import CellsFailedError, run_cells
+    from .statistics import Aggregate, CellGroup, aggregate, group_cells
 
 __all__ = ["CELL_FUNCTIONS", "Aggregate", "Cell", "CellCache", "CellGroup", "CellsFailedError", "Column",
            "Row", "aggregate", "code_version", "experiment_document", "group_cells", "latex_table",
@@ -40,9 +40,9 @@ __all__ = ["CELL_FUNCTIONS", "Aggregate", "Cell", "CellCache", "CellGroup", "Cel
 _LAZY = {"CellCache": "cache", "CELL_FUNCTIONS": "cells", "Cell": "cells", "code_version": "cells",
          "register_cell_function": "cells", "run_cell": "cells", "CellsFailedError": "runners",
          "run_cells": "runners", "Aggregate": "statistics", "CellGroup": "statistics",
-         "aggregate": "statistics", "group_cells": "statistics", "Column": "tables", "Row": "tables",
-         "experiment_document": "tables", "latex_table": "tables", "markdown_table": "tables",
-         "rows_from_groups": "tables", "write_results": "tables"}
+         "aggregate": "statistics", "group_cells": "statistics", "Column": "results", "Row": "results",
+         "experiment_document": "results", "latex_table": "results", "markdown_table": "results",
+         "rows_from_groups": "results", "write_results": "results"}
 
 
 __getattr__, __dir__ = lazy_exports(__name__, _LAZY, __all__)

@@ -40,8 +40,7 @@ from .aero_monomials import aero_coefficients_oge, aero_coefficients_oge_wp
 from .atmosphere import RHO_SEA_LEVEL
 from .constants import GAMMA, R_AIR, T0
 from .ground_effect import GE_INDUCED, GE_PAPER, GE_TABLES, influence_ratios, phillips_hunsaker_wp
-from .params import ModelParams, WarpParams
-from .tables import (
+from .interpolated_terms import (
     AIRSPEED,
     ALPHA,
     ALPHA_DOT,
@@ -60,6 +59,7 @@ from .tables import (
     table_output_wp,
     table_outputs,
 )
+from .params import ModelParams, WarpParams
 
 MIN_AIRSPEED = 0.1  # m/s, floor for the non-dimensional rates
 #: h/b the tables see when ground effect is not in mode "tables" (beyond every ground-effect table).

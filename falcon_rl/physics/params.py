@@ -3,7 +3,7 @@
 The parameters are declared once, in :data:`PARAMETER_TABLE` (one :class:`ParamRow` each); the
 torch container :class:`ModelParams`, :func:`build_params`, the Warp struct :class:`WarpParams`,
 :func:`bind_warp_params` and :data:`RANDOMIZABLE_PARAMETERS` are generated from it (machinery in
-:mod:`.parameter_table`). Adding a parameter is one row here (plus its Airframe field).
+:mod:`.param_schema`). Adding a parameter is one row here (plus its Airframe field).
 
 Every row but the aero monomial exponents is per env, so that domain randomisation is one masked
 write (``ModelParams.assign``); the exponents are shared by all envs (they fix the structure, not
@@ -19,12 +19,12 @@ from typing import Any
 import torch
 
 from ..airframe import MOTOR_MODELS, SURFACES, Actuator, Airframe
-from ..airframe_tables import ALPHA_DOT_VARIABLE, INDEX_COLUMNS, NO_OUTPUT, TABLE_VARIABLES
+from ..airframe_terms import ALPHA_DOT_VARIABLE, INDEX_COLUMNS, NO_OUTPUT, TABLE_VARIABLES
 from ..constants import G0
-from . import parameter_table
+from . import param_schema
 from ._warp import vector_type, wp
 from .ground_effect import WingConstants, ground_effect_mode, wing_constants
-from .parameter_table import (
+from .param_schema import (
     BuildOptions,
     Derivation,
     ParamRow,
@@ -148,7 +148,7 @@ PARAMETER_TABLE: tuple[ParamRow, ...] = (
     ParamRow("motor_model", "[N, M]", lambda af, _: [MOTOR_MODELS.index(m.model) for m in af.motors],
              dtype="int32", warp="int32", doc="0 momentum theory, 1 the airframe's thrust map (table terms)"),
     ParamRow("table_gain", "[N, K]", lambda af, _: af.tables.gains(), randomizable=True,
-             doc="gain of each table term (physics/tables.py)"),
+             doc="gain of each table term (physics/interpolated_terms.py)"),
     ParamRow("table_index", "[K, 12]", lambda af, _: af.tables.index(), dtype="int32", per_env=False,
              warp="int32", doc=f"packed table terms, columns {', '.join(INDEX_COLUMNS)}"),
     ParamRow("table_output_start", f"[{NO_OUTPUT + 1}]", lambda af, _: af.tables.output_start(),
@@ -225,7 +225,7 @@ def bind_warp_params(p: ModelParams) -> WarpParams:
 
 def check_randomizable(names: Iterable[str]) -> None:
     """Raise KeyError for an unknown parameter name, ValueError for one that is not randomisable."""
-    parameter_table.check_randomizable(PARAMETER_TABLE, names)
+    param_schema.check_randomizable(PARAMETER_TABLE, names)
 
 
 def parameter_table_markdown() -> str:

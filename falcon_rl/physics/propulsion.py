@@ -30,9 +30,7 @@ from __future__ import annotations
 import torch
 
 from ._warp import warp_func, warp_struct, wp
-from .params import ModelParams, WarpParams
-from .state import ANGULAR_RATE_START, THROTTLE_START, StateVec
-from .tables import (
+from .interpolated_terms import (
     AIRSPEED,
     ANGULAR_MOMENTUM_OUTPUT,
     DENSITY,
@@ -45,6 +43,8 @@ from .tables import (
     table_output_wp,
     table_outputs,
 )
+from .params import ModelParams, WarpParams
+from .state import ANGULAR_RATE_START, THROTTLE_START, StateVec
 
 #: ``motor_model`` code of a thrust-map motor.
 THRUST_MAP = 1

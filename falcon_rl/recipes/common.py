@@ -26,6 +26,7 @@ import torch
 from torch import nn
 from torchrl.envs import ExcludeTransform, RewardSum, TransformedEnv
 
+from ..airframe import DEFAULT_AIRFRAME
 from ..envs import make_env, task_spec
 from ..envs.tasks import TERMINATION_CODE
 from ..policies.format import ACTIVATIONS
@@ -42,7 +43,7 @@ class TrainConfig:
     #: A registered task; its ``TaskSpec.training[<algorithm>]`` holds the task's defaults of these fields.
     task: str = "altitude"
     #: Shipped airframe name or JSON path.
-    airframe: str = "volantex_ranger"
+    airframe: str = DEFAULT_AIRFRAME
     #: Parallel envs in the training batch.
     num_envs: int = 512
     #: Simulator backend: "warp" is the fastest on CPU at these batch sizes.

@@ -26,6 +26,7 @@ from .._lazy import lazy_exports
 if TYPE_CHECKING:
     from ._env import FLIGHT_ENV_INTERFACE, FlightEnv, flight_env
     from .delay import ActionDelay, ObservationDelay
+    from .flight_recorder import FlightRecorder
     from .presets import (
         GRID,
         delay_preset,
@@ -35,7 +36,6 @@ if TYPE_CHECKING:
         sensor_preset,
     )
     from .randomize import DomainRandomization, RandomizationConfig
-    from .record import FlightRecorder
     from .sensors import SENSOR_FIELDS, SensorChannel, SensorConfig, SensorTransform
 
 #: Public name -> the submodule that defines it.
@@ -45,7 +45,7 @@ _LAZY = {
     **dict.fromkeys(("GRID", "delay_preset", "grid_turbulence", "resolve_turbulence", "robustness_transforms",
                      "sensor_preset"), "presets"),
     **dict.fromkeys(("DomainRandomization", "RandomizationConfig"), "randomize"),
-    "FlightRecorder": "record",
+    "FlightRecorder": "flight_recorder",
     **dict.fromkeys(("SENSOR_FIELDS", "SensorChannel", "SensorConfig", "SensorTransform"), "sensors"),
 }
 

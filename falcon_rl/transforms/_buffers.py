@@ -178,21 +178,21 @@ def delay_bounds(spec: object) -> tuple[float, float]:
     return low, high
 
 
-def delay_steps(delay_ms: float, env_dt: float) -> int:
+def delay_steps(delay_ms: float, control_dt: float) -> int:
     """A delay in ms as a whole number of env steps (rounded)."""
     low, _ = delay_bounds(delay_ms)
-    return round(low / 1000.0 / env_dt)
+    return round(low / 1000.0 / control_dt)
 
 
-def delay_range(spec: float | tuple[float, float], env_dt: float) -> tuple[int, int]:
+def delay_range(spec: float | tuple[float, float], control_dt: float) -> tuple[int, int]:
     """(low, high) steps of a fixed delay or of a (low, high) range in ms (see :func:`delay_bounds`);
     ValueError when a delay that is not zero rounds to no step at this control period (a 20 ms delay
     at 20 Hz control would silently be no delay)."""
     low, high = delay_bounds(spec)
-    steps = round(low / 1000.0 / env_dt), round(high / 1000.0 / env_dt)
+    steps = round(low / 1000.0 / control_dt), round(high / 1000.0 / control_dt)
     if high > 0 and steps[1] == 0:
-        raise ValueError(f"a delay of {high:g} ms is under half the {1000 * env_dt:g} ms control step and "
-                         f"would round to no delay; use a longer delay or a faster control (decimation)")
+        raise ValueError(f"a delay of {high:g} ms is under half the {1000 * control_dt:g} ms control step "
+                         f"and would round to no delay; use a longer delay or a faster control (decimation)")
     return steps
 
 

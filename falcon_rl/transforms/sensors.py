@@ -90,13 +90,13 @@ class SensorConfig:
 class _ChannelState:
     """Per-env state of one channel: episode bias and scale, held sample, delay line."""
 
-    def __init__(self, channel: SensorChannel, value: torch.Tensor, env_dt: float):
+    def __init__(self, channel: SensorChannel, value: torch.Tensor, control_dt: float):
         self.channel = channel
-        self.period = 1 if channel.rate_hz is None else max(1, round(1.0 / (channel.rate_hz * env_dt)))
+        self.period = 1 if channel.rate_hz is None else max(1, round(1.0 / (channel.rate_hz * control_dt)))
         self.bias = torch.zeros_like(value)
         self.scale = torch.ones_like(value)
         self.held = value.clone()
-        steps = delay_steps(channel.delay_ms, env_dt)
+        steps = delay_steps(channel.delay_ms, control_dt)
         self.line = DelayLine(value.shape[0], steps, tuple(value.shape[1:]), value.dtype, value.device)
         self.line.delay.fill_(steps)
 
@@ -158,7 +158,7 @@ class SensorTransform(SeededTransform):
             x = state.get(key)
             st = self._state.get(key)
             if st is None:
-                st = self._state[key] = _ChannelState(channel, x, self.env_dt)
+                st = self._state[key] = _ChannelState(channel, x, self.control_dt)
             if mask is not None:
                 self._draw_episode_errors(mask, x, st)
             y = self._corrupt(key, x, st)
@@ -185,7 +185,7 @@ class SensorTransform(SeededTransform):
         return TensorDict(fields_, batch_size=state.batch_size, device=state.device)
 
     @property
-    def env_dt(self) -> float:
+    def control_dt(self) -> float:
         """Seconds per env step of the base env (its ``control_dt``)."""
         return flight_env(self, "control_dt").control_dt
 

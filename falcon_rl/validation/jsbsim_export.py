@@ -68,12 +68,12 @@ def throttle_property(m: int) -> str:
     return f"fcs/falcon/throttle-pos-{m}"
 
 
-def export_aircraft(airframe: Airframe, directory: str | Path, ground_effect_model: str = "induced"
+def export_aircraft(airframe: Airframe, directory: str | Path, ground_effect: str = "induced"
                     ) -> Path:
     """Write the JSBSim aircraft for ``airframe`` under ``directory``; returns the XML path.
 
     ``directory`` becomes a JSBSim root: load it with ``FGFDMExec(str(directory))`` and
-    ``load_model(airframe.name)``. ``ground_effect_model`` is "induced" (our default: only the
+    ``load_model(airframe.name)``. ``ground_effect`` is "induced" (our default: only the
     induced drag is scaled) or "paper" (C_D = C_D_inf kappa_D kappa_L^2); set the property
     ``aero/falcon/ground-effect`` to 0 to fly without ground effect. Only monomial airframes are
     exported: a tabulated one (imported from JSBSim) is compared with its source aircraft instead
@@ -82,8 +82,8 @@ def export_aircraft(airframe: Airframe, directory: str | Path, ground_effect_mod
     if airframe.aero.kind != "monomial":
         raise ValueError(f"{airframe.name}: the JSBSim export writes monomial aero models only; compare an "
                          "imported airframe with its JSBSim aircraft: validate jsbsim --jsbsim-model NAME")
-    if ground_effect_model not in ("induced", "paper"):
-        raise ValueError(f"ground_effect_model must be 'induced' or 'paper', got {ground_effect_model!r}")
+    if ground_effect not in ("induced", "paper"):
+        raise ValueError(f"ground_effect must be 'induced' or 'paper', got {ground_effect!r}")
     root = ET.Element("fdm_config", {"name": airframe.name, "version": "2.0", "release": "BETA"})
     header = ET.SubElement(root, "fileheader")
     text(header, "author", "falcon-rl JSBSim exporter")
@@ -95,7 +95,7 @@ def export_aircraft(airframe: Airframe, directory: str | Path, ground_effect_mod
     ET.SubElement(root, "propulsion")
     _flight_control(root, airframe)
     _external_reactions(root, airframe)
-    _aerodynamics(root, airframe, ground_effect_model)
+    _aerodynamics(root, airframe, ground_effect)
     ET.indent(root)
     path = Path(directory) / "aircraft" / airframe.name / f"{airframe.name}.xml"
     path.parent.mkdir(parents=True, exist_ok=True)

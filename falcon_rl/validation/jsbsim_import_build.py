@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from ..airframe_tables import TABLE_OUTPUTS, TableTerm
+from ..airframe_terms import TABLE_OUTPUTS, TableTerm
 from ..constants import FT, G0
 from .jsbsim_engine import LBF, EngineMap, sample_engine
 from .jsbsim_functions import UnsupportedFunctionError, multilinear, parse_function

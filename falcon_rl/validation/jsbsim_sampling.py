@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..airframe_tables import ALPHA_DOT_VARIABLE, MAX_TABLE_AXES, TABLE_OUTPUTS, TABLE_VARIABLES, TableTerm
+from ..airframe_terms import ALPHA_DOT_VARIABLE, MAX_TABLE_AXES, TABLE_OUTPUTS, TABLE_VARIABLES, TableTerm
 from ..constants import FT
 from .jsbsim_functions import Node, UnsupportedFunctionError, multilinear, table_breakpoints
 

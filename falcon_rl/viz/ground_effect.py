@@ -10,7 +10,7 @@ import matplotlib.ticker
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
-from ..evaluation.ground_effect_table import GroundEffectRow
+from ..evaluation.ground_effect_trim import GroundEffectRow
 from ._figure import save_figure
 
 

@@ -1,8 +1,9 @@
-"""Flight tasks, one small module each (observation, reward, termination, reference), each registering
-its :class:`TaskSpec` (gym id, evaluation protocol and metrics, baselines, figure, training defaults).
+"""Flight tasks, one folder each: ``<name>/task.py`` (config, episode, observation, reward, termination,
+reference), ``<name>/kernels.py`` (its fused Warp step) and ``<name>/spec.py``, which registers its
+:class:`TaskSpec` (gym id, evaluation protocol and metrics, baselines, figure, training defaults).
 
-``task_spec(name)`` is the record of a task; ``TASKS`` maps a task name to its (Task class, config
-dataclass) and ``TASK_SPECS`` to its spec (both live, read-only views of the registry).
+``task_spec(name)`` is the record of a task, ``task_names()`` lists them and ``TASK_SPECS`` maps a name to
+its spec (a live, read-only view of the registry).
 """
 
 from __future__ import annotations
@@ -14,7 +15,6 @@ from .climb_descend import ClimbDescendConfig, ClimbDescendTask
 from .path_following import PathFollowingConfig, PathFollowingTask
 from .registry import (
     TASK_SPECS,
-    TASKS,
     TRIM_HOLD,
     Metric,
     TaskSpec,
@@ -27,7 +27,6 @@ from .registry import (
 from .trajectory import TrajectoryConfig, TrajectoryTask
 
 __all__ = [
-    "TASKS",
     "TASK_SPECS",
     "TERMINATION_CODE",
     "TERMINATION_REASONS",

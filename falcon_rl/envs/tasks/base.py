@@ -159,11 +159,11 @@ class Task(ABC):
     action_channels: ClassVar[tuple[int, ...]] = (S.ELEVATOR, S.AILERON, S.RUDDER, S.THROTTLE)
 
     def __init__(self, config: TaskConfig, sim: Simulator, generator: torch.Generator,
-                 env_dt: float, ground_effect: bool | str = True):
+                 control_dt: float, ground_effect: bool | str = True):
         config.check(self.name)
         self.config = config
         #: Length of one env step (decimation x physics dt), s.
-        self.env_dt = float(env_dt)
+        self.control_dt = float(control_dt)
         self.sim = sim
         self.airframe: Airframe = sim.airframe
         self.generator = generator
@@ -266,7 +266,7 @@ class Task(ABC):
 
     def advance(self) -> None:
         """Move the task clock (and any reference) forward by one env step."""
-        self.time += self.env_dt
+        self.time += self.control_dt
 
     @abstractmethod
     def observe(self, state: TensorDictBase) -> torch.Tensor:

@@ -232,9 +232,6 @@ class SpecView(Mapping[str, V], Generic[V]):
         return f"{type(self).__name__}({dict(self)!r})"
 
 
-#: Task name -> (Task class, config dataclass), as before the registry (a live view of it).
-TASKS: Mapping[str, tuple[type[Task], type[TaskConfig]]] = SpecView(lambda spec: (spec.task, spec.config))
-
-__all__ = ["ALGORITHMS", "ENV_DEFAULT_FIELDS", "TASKS", "TASK_SPECS", "TRAINING_DECIMATION", "TRIM_HOLD",
+__all__ = ["ALGORITHMS", "ENV_DEFAULT_FIELDS", "TASK_SPECS", "TRAINING_DECIMATION", "TRIM_HOLD",
            "Metric", "Ref", "SpecView", "TaskSpec", "register_task", "resolve", "task_names", "task_spec",
            "unregister_task"]

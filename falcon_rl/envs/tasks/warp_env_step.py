@@ -46,11 +46,11 @@ from ...physics.warp_kernels import (
     flush_denormals_begin,
     flush_denormals_end,
 )
-from .altitude_warp import AltitudeBuffers, AltitudeConstants, altitude_step
-from .attitude_warp import AttitudeBuffers, AttitudeConstants, attitude_step
+from .altitude.kernels import AltitudeBuffers, AltitudeConstants, altitude_step
+from .attitude.kernels import AttitudeBuffers, AttitudeConstants, attitude_step
 from .base import TERMINATION_CODE
-from .path_following_warp import PathFollowingBuffers, PathFollowingConstants, path_following_step
-from .trajectory_warp import TrajectoryBuffers, TrajectoryConstants, trajectory_step
+from .path_following.kernels import PathFollowingBuffers, PathFollowingConstants, path_following_step
+from .trajectory.kernels import TrajectoryBuffers, TrajectoryConstants, trajectory_step
 from .warp_common import FusedStep, SimulatorViews
 
 

@@ -1,7 +1,7 @@
-"""The two Warp kernels around a task's fused functions, made here for every task (``*_warp`` modules):
-the step kernel (``FusedStep.kernel``) and the start kernel (``FusedStep.start_kernel``), each handling
-env i = offset + tid (``offset``: the first env of a CPU slice of the engine) with denormals flushed as
-the physics' kernels do.
+"""The two Warp kernels around a task's fused functions, made here for every task (each task's
+``kernels`` module): the step kernel (``FusedStep.kernel``) and the start kernel
+(``FusedStep.start_kernel``), each handling env i = offset + tid (``offset``: the first env of a CPU
+slice of the engine) with denormals flushed as the physics' kernels do.
 
 No ``from __future__ import annotations`` here: Warp reads the kernels' annotations, which name the
 task's struct types through the closure.

@@ -24,7 +24,7 @@ Termination: ground contact, stall, or |e_p| > ``lost_distance``. Published: pos
 (|e_p|), position_error_ned [3], reference_position [3], reference_velocity [3].
 
 On the warp backend the env's step runs :meth:`TrajectoryTask.fused_step`: all of the above after the
-physics in one Warp kernel (``trajectory_warp``).
+physics in one Warp kernel (``trajectory.kernels``).
 """
 
 from __future__ import annotations
@@ -36,14 +36,13 @@ from typing import TYPE_CHECKING, ClassVar
 import torch
 from tensordict import TensorDictBase
 
-from ...constants import DEG, G0
-from ...physics import Simulator
-from ...physics import state as S
-from .base import Task, TaskConfig, airspeed_margin_penalty, gaussian
-from .registry import TRIM_HOLD, Metric, TaskSpec, register_task
+from ....constants import DEG, G0
+from ....physics import Simulator
+from ....physics import state as S
+from ..base import Task, TaskConfig, airspeed_margin_penalty, gaussian
 
 if TYPE_CHECKING:
-    from .warp_common import FusedStep
+    from ..warp_common import FusedStep
 
 
 @dataclass
@@ -86,8 +85,8 @@ class TrajectoryTask(Task):
     config: TrajectoryConfig
 
     def __init__(self, config: TrajectoryConfig, sim: Simulator, generator: torch.Generator,
-                 env_dt: float, ground_effect: bool | str = True):
-        super().__init__(config, sim, generator, env_dt, ground_effect)
+                 control_dt: float, ground_effect: bool | str = True):
+        super().__init__(config, sim, generator, control_dt, ground_effect)
         n, kw = self.num_envs, {"device": self.device, "dtype": self.dtype}
         self.speed = float(self.airframe.envelope.cruise_speed)
         self.start = torch.zeros(n, 3, **kw)  # p_0, NED
@@ -173,13 +172,13 @@ class TrajectoryTask(Task):
         return {**super().termination_checks(state), "lost": distance > self.config.lost_distance}
 
     def fused_stepper(self) -> FusedStep | None:
-        """:meth:`step` as one Warp kernel on the warp backend (``trajectory_warp``; None elsewhere, or
+        """:meth:`step` as one Warp kernel on the warp backend (``trajectory.kernels``; None elsewhere, or
         when a subclass overrides a method of the step): (observation [N, 17], reward [N], reason [N]
         long), buffers overwritten by the next call."""
         if self.sim.backend != "warp":
             return None
-        from .trajectory_warp import FusedTrajectoryStep
-        from .warp_common import fused_stepper
+        from ..warp_common import fused_stepper
+        from .kernels import FusedTrajectoryStep
 
         return fused_stepper(self, TrajectoryTask, _FUSED_METHODS, FusedTrajectoryStep)
 
@@ -193,14 +192,3 @@ class TrajectoryTask(Task):
 #: The methods :meth:`TrajectoryTask.fused_step` fuses: a subclass that overrides one falls back to ``step``.
 _FUSED_METHODS: tuple[str, ...] = ("step", "advance", "advance_reference", "update", "reward", "observe",
                                    "termination_checks", "termination_reason")
-
-SPEC = register_task(TaskSpec(
-    name="trajectory", task=TrajectoryTask, config=TrajectoryConfig, gym_id="falcon_rl/Trajectory-v0",
-    title="3D trajectory tracking",
-    protocol="falcon_rl.evaluation.protocols:trajectory_protocol", select_on="position_rmse_m",
-    metrics=(Metric("survival", "Surv."), Metric("position_rmse_m", "RMSE", "m"),
-             Metric("horizontal_rmse_m", "horiz. RMSE", "m"), Metric("vertical_rmse_m", "vert. RMSE", "m"),
-             Metric("time_in_band", "in band")),
-    controllers={"trim": TRIM_HOLD},
-    figure="falcon_rl.viz.tracking:plot_trajectory",
-))

@@ -8,7 +8,7 @@
 Registered ids: each task's ``TaskSpec.gym_id`` (falcon_rl/Altitude-v0, falcon_rl/Attitude-v0,
 falcon_rl/ClimbDescend-v0, falcon_rl/PathFollowing-v0, falcon_rl/Trajectory-v0, and any task registered
 later once ``register_gym_envs()`` runs again), each with a ``vector_entry_point`` (one batched
-simulator, :class:`falcon_rl.envs.gym_vector.FalconVectorEnv`) and ``max_episode_steps`` = the task's
+simulator, :class:`falcon_rl.envs.gym.vector.FalconVectorEnv`) and ``max_episode_steps`` = the task's
 default horizon (episode_seconds / control period of the default configs). Keyword arguments are
 those of :func:`falcon_rl.envs.make_env` (airframe, backend, device, seed and task or env options);
 the backend defaults to "warp".
@@ -28,7 +28,7 @@ references and errors (("task", ...) keys) and the env's ``termination_reason`` 
 ``TERMINATION_REASONS``) as numbers or arrays.
 
 Speed: an env without robustness options steps through the env's tensor core
-(:mod:`falcon_rl.envs.gym_core`, no TensorDicts; ``fast_path=False`` turns it off), one with them
+(:mod:`falcon_rl.envs.gym.core`, no TensorDicts; ``fast_path=False`` turns it off), one with them
 through TorchRL's step, which runs the transforms; both give the same numbers.
 """
 
@@ -43,10 +43,11 @@ from gymnasium import spaces
 from tensordict import TensorDict, TensorDictBase
 from torchrl.envs import EnvBase
 
-from ..physics.engine import fresh_seed
-from ..transforms.action_check import refuse_bad_action
-from .gym_render import RENDER_MODES, GymRenderer, available_render_modes, check_render_mode
-from .tasks.registry import TASK_SPECS, SpecView, task_spec
+from ...airframe import DEFAULT_AIRFRAME
+from ...physics.engine import fresh_seed
+from ...transforms.action_check import refuse_bad_action
+from ..tasks.registry import TASK_SPECS, SpecView, task_spec
+from .render import RENDER_MODES, GymRenderer, available_render_modes, check_render_mode
 
 #: Task name -> Gymnasium id (a live, read-only view of the task registry).
 GYM_IDS: SpecView[str] = SpecView(lambda spec: spec.gym_id)
@@ -56,13 +57,13 @@ DEFAULT_BACKEND: str = "warp"
 
 #: Entry points registered for every task.
 ENTRY_POINT: str = "falcon_rl.envs.gym:CoreAircraftEnv"
-VECTOR_ENTRY_POINT: str = "falcon_rl.envs.gym_vector:FalconVectorEnv"
+VECTOR_ENTRY_POINT: str = "falcon_rl.envs.gym.vector:FalconVectorEnv"
 
 
 def build_env(task: str, airframe: str, num_envs: int, backend: str, device: str, seed: int | None,
               options: dict[str, Any]) -> tuple[EnvBase, int]:
     """(the TorchRL env of ``make_env`` with batch [num_envs], the int seed it was built with)."""
-    from .factory import make_env
+    from ..factory import make_env
 
     seed = fresh_seed() if seed is None else int(seed)
     env = make_env(task, airframe, num_envs=num_envs, backend=backend, device=device, seed=seed, **options)
@@ -142,7 +143,7 @@ def default_max_episode_steps(task: str) -> int:
     """Env steps in an episode of ``task`` built with its defaults (the task's ``defaults`` over the
     config dataclasses; the registered ``max_episode_steps``): episode_seconds / (dt x decimation), as
     :class:`FixedWingEnv` counts them."""
-    from .fixed_wing import FixedWingEnvConfig
+    from ..fixed_wing import FixedWingEnvConfig
 
     spec, config = task_spec(task), FixedWingEnvConfig()
     decimation = config.decimation if config.decimation is not None else spec.env_default("decimation", 1)
@@ -154,24 +155,25 @@ class CoreAircraftEnv(gymnasium.Env):
     """A single-aircraft :class:`FixedWingEnv` behind the Gymnasium API (float32 Box spaces [D], [A]).
 
     ``fast_path`` (the default) steps an env with no TorchRL transform over it through its tensor core
-    (:class:`~falcon_rl.envs.gym_core.TensorCore`: no TensorDicts, one host copy per step); False, or
+    (:class:`~falcon_rl.envs.gym.core.TensorCore`: no TensorDicts, one host copy per step); False, or
     any robustness option (a ``TransformedEnv``), steps through TorchRL's ``step``. Both give the same
     numbers (tests/test_gym.py steps both side by side)."""
 
     #: Every mode the class knows; an instance lists those that work here (no "human" when headless).
     metadata: dict[str, Any] = {"render_modes": list(RENDER_MODES)}  # noqa: RUF012 (gymnasium's)
 
-    def __init__(self, task: str = "altitude", airframe: str = "navion", backend: str = DEFAULT_BACKEND,
+    def __init__(self, task: str = "altitude", airframe: str = DEFAULT_AIRFRAME,
+                 backend: str = DEFAULT_BACKEND,
                  device: str = "cpu", seed: int | None = None, fast_path: bool = True,
                  render_mode: str | None = None, **options: Any):
-        from .gym_core import TensorCore, tensor_core_env
+        from .core import TensorCore, tensor_core_env
 
         check_render_mode(render_mode)
         self.env, self.build_seed = build_env(task, airframe, 1, backend, device, seed, options)
         base = getattr(self.env, "base_env", self.env)
         self.metadata = {**self.metadata, "render_modes": available_render_modes(),
                          "render_fps": 1.0 / base.control_dt}
-        #: Gymnasium's render mode; the view is built only when there is one (see ``gym_render``).
+        #: Gymnasium's render mode; the view is built only when there is one (see ``gym.render``).
         self.render_mode = render_mode
         self._renderer: GymRenderer | None = None if render_mode is None else GymRenderer(
             render_mode, base, [0], self.metadata["render_fps"])

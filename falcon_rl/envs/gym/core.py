@@ -22,7 +22,7 @@ import numpy as np
 import torch
 from torchrl.envs import EnvBase
 
-from .fixed_wing import FixedWingEnv
+from ..fixed_wing import FixedWingEnv
 
 
 class Transition(NamedTuple):

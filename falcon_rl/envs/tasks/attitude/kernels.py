@@ -21,9 +21,9 @@ from typing import TYPE_CHECKING, Any
 import torch
 import warp as wp
 
-from ...constants import DEG
-from ...physics._warp import forward_only
-from .warp_common import (
+from ....constants import DEG
+from ....physics._warp import forward_only
+from ..warp_common import (
     FlightState,
     FusedStep,
     SimulatorViews,
@@ -35,12 +35,12 @@ from .warp_common import (
     gaussian_wp,
     termination_code,
 )
-from .warp_task_kernels import task_kernels
+from ..warp_task_kernels import task_kernels
 
 forward_only(__name__)
 
 if TYPE_CHECKING:
-    from .base import Task
+    from ..base import Task
 
 
 @wp.struct
@@ -65,7 +65,7 @@ class AttitudeBuffers:
 class AttitudeConstants:
     """Config, stream and airframe constants, each the float32 the torch step's scalar or tensor holds."""
 
-    env_dt: float
+    control_dt: float
     random: int  # 1: RandomCommandStream, 0: maneuver table
     table_last: wp.int64
     stream_dt: float
@@ -149,7 +149,7 @@ def attitude_step(sim: SimulatorViews, buf: AttitudeBuffers, c: AttitudeConstant
     and writes observation [N, 15], reward [N] and the termination reason [N] (0: flying)."""
     f = flight_state(sim, i)
     # advance: clock, command stream
-    buf.time[i] = buf.time[i] + c.env_dt
+    buf.time[i] = buf.time[i] + c.control_dt
     index = buf.step_index[i] + wp.int64(1)
     buf.step_index[i] = index
     commanded = wp.vec3(0.0)
@@ -205,7 +205,8 @@ def attitude_constants(task: Task) -> Any:
     cfg = task.config
     env = task.airframe.envelope
     values: dict[str, Any] = {
-        "env_dt": task.env_dt, "random": 0, "table_last": 0, "stream_dt": 0.0, "target_low": (0.0,) * 3,
+        "control_dt": task.control_dt, "random": 0, "table_last": 0, "stream_dt": 0.0,
+        "target_low": (0.0,) * 3,
         "target_span": (0.0,) * 3, "slew_min": (0.0,) * 3, "slew_max": (0.0,) * 3, "hold_low": 0.0,
         "hold_span": 0.0, "error_scale": tuple(task.error_scale.tolist()), "angle_scale": math.pi / 4,
         "air_angle_scale": 20.0 * DEG, "climb_scale": task.climb_scale, "w_bank": cfg.w_bank,

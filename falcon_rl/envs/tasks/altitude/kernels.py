@@ -26,9 +26,9 @@ from typing import TYPE_CHECKING, Any
 import torch
 import warp as wp
 
-from ...constants import DEG, G0
-from ...physics._warp import forward_only
-from .warp_common import (
+from ....constants import DEG, G0
+from ....physics._warp import forward_only
+from ..warp_common import (
     FlightState,
     FusedStep,
     SimulatorViews,
@@ -44,12 +44,12 @@ from .warp_common import (
     termination_code,
     torch_sign,
 )
-from .warp_task_kernels import task_kernels
+from ..warp_task_kernels import task_kernels
 
 forward_only(__name__)
 
 if TYPE_CHECKING:
-    from .base import Task
+    from ..base import Task
 
 
 @wp.struct
@@ -83,7 +83,7 @@ class AltitudeBuffers:
 class AltitudeConstants:
     """Config and airframe constants, each the float32 the torch step's scalar becomes."""
 
-    env_dt: float
+    control_dt: float
     target_sequence: int
     hold_seconds: float
     capture_band: float
@@ -170,7 +170,7 @@ def altitude_step(sim: SimulatorViews, buf: AltitudeBuffers, c: AltitudeConstant
     elevator = f.surfaces[0]
     pitch_rate = f.angular_rate[1]
     # advance: clock, segment time, reference ramp
-    dt = c.env_dt
+    dt = c.control_dt
     buf.time[i] = buf.time[i] + dt
     elapsed = buf.segment_time[i] + dt
     target = buf.target[i]
@@ -266,7 +266,7 @@ def altitude_constants(task: Task) -> Any:
     them: Python products first, then float32)."""
     cfg = task.config
     return fill_struct(AltitudeConstants(), {
-        "env_dt": task.env_dt, "hold_seconds": cfg.hold_seconds, "capture_band": cfg.capture_band,
+        "control_dt": task.control_dt, "hold_seconds": cfg.hold_seconds, "capture_band": cfg.capture_band,
         "integral_limit": cfg.integral_limit, "trim_airspeed": task.trim_airspeed,
         "airspeed_sigma": cfg.airspeed_scale * task.trim_airspeed,
         "climb_rate_limit": task.airframe.envelope.climb_rate_limit, "pitch_scale": math.pi / 4,

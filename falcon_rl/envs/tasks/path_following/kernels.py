@@ -18,9 +18,9 @@ from typing import TYPE_CHECKING, Any
 
 import warp as wp
 
-from ...constants import DEG
-from ...physics._warp import forward_only
-from .warp_common import (
+from ....constants import DEG
+from ....physics._warp import forward_only
+from ..warp_common import (
     FlightState,
     FusedStep,
     SimulatorViews,
@@ -32,12 +32,12 @@ from .warp_common import (
     termination_code,
     wrap_angle_wp,
 )
-from .warp_task_kernels import task_kernels
+from ..warp_task_kernels import task_kernels
 
 forward_only(__name__)
 
 if TYPE_CHECKING:
-    from .base import Task
+    from ..base import Task
 
 
 @wp.struct
@@ -56,7 +56,7 @@ class PathFollowingBuffers:
 class PathFollowingConstants:
     """Config and airframe constants, each the float32 the torch step's scalar becomes."""
 
-    env_dt: float
+    control_dt: float
     path_height: float
     lost_distance: float
     climb_rate_limit: float
@@ -123,7 +123,7 @@ def path_following_step(sim: SimulatorViews, buf: PathFollowingBuffers, c: PathF
     """One path-following step of env i after the physics: updates the buffers in place
     and writes observation [N, 17], reward [N] and the termination reason [N] (0: flying)."""
     f = flight_state(sim, i)
-    buf.time[i] = buf.time[i] + c.env_dt
+    buf.time[i] = buf.time[i] + c.control_dt
     errors = path_errors(f, buf, c, i)
     cross_track = errors[0]
     course_error = errors[1]
@@ -182,7 +182,8 @@ class FusedPathFollowingStep(FusedStep):
             "time": task.time, "path_point": task.path_point, "path_course": task.path_course,
             "errors": task.errors, "previous_action": task.previous_action, "action": self.action})
         constants = fill_struct(PathFollowingConstants(), {
-            "env_dt": task.env_dt, "path_height": cfg.initial_height, "lost_distance": cfg.lost_distance,
+            "control_dt": task.control_dt, "path_height": cfg.initial_height,
+            "lost_distance": cfg.lost_distance,
             "climb_rate_limit": env.climb_rate_limit, "cruise_speed": env.cruise_speed,
             "airspeed_sigma": cfg.airspeed_scale * env.cruise_speed, "angle_scale": math.pi / 4,
             "air_angle_scale": 20.0 * DEG, "w_cross_track": cfg.w_cross_track,

@@ -42,7 +42,7 @@ initial_altitude h_0, altitude_error h - h* (the error the metrics score) and re
 h - h_ref.
 
 On the warp backend the env's step runs :meth:`AltitudeTask.fused_step`: all of the above after the
-physics in one Warp kernel (``altitude_warp``) instead of ``Simulator.state`` and ~100 torch ops; a
+physics in one Warp kernel (``altitude.kernels``) instead of ``Simulator.state`` and ~100 torch ops; a
 reset starts the episodes (``after_reset`` and the observation) in one launch too.
 """
 
@@ -55,14 +55,13 @@ from typing import TYPE_CHECKING, ClassVar
 import torch
 from tensordict import TensorDictBase
 
-from ...constants import DEG, G0
-from ...physics import Simulator
-from ...physics import state as S
-from .base import Task, TaskConfig, gaussian, normalised_surfaces, taper
-from .registry import TRAINING_DECIMATION, TRIM_HOLD, Metric, TaskSpec, register_task
+from ....constants import DEG, G0
+from ....physics import Simulator
+from ....physics import state as S
+from ..base import Task, TaskConfig, gaussian, normalised_surfaces, taper
 
 if TYPE_CHECKING:
-    from .warp_common import FusedStep
+    from ..warp_common import FusedStep
 
 
 @dataclass
@@ -115,8 +114,8 @@ class AltitudeTask(Task):
     config: AltitudeConfig
 
     def __init__(self, config: AltitudeConfig, sim: Simulator, generator: torch.Generator,
-                 env_dt: float, ground_effect: bool | str = True):
-        super().__init__(config, sim, generator, env_dt, ground_effect)
+                 control_dt: float, ground_effect: bool | str = True):
+        super().__init__(config, sim, generator, control_dt, ground_effect)
         n, kw = self.num_envs, {"device": self.device, "dtype": self.dtype}
         #: Reference climb/sink rate per env, m/s. [N]
         self.default_climb_rate = float(config.climb_rate or self.airframe.envelope.climb_rate_limit)
@@ -177,14 +176,14 @@ class AltitudeTask(Task):
 
     def advance(self) -> None:
         super().advance()
-        self.segment_time += self.env_dt
+        self.segment_time += self.control_dt
         self._update_reference()
 
     def _release_next_targets(self, height: torch.Tensor) -> None:
         """Target sequence: envs that held h* for hold_seconds get a new, different target."""
         cfg = self.config
         inside = (height - self.target).abs() <= cfg.capture_band
-        self.time_in_band.copy_(torch.where(inside, self.time_in_band + self.env_dt, 0.0))
+        self.time_in_band.copy_(torch.where(inside, self.time_in_band + self.control_dt, 0.0))
         held = self.time_in_band >= cfg.hold_seconds
         table = self.target_table
         shift = torch.randint(1, max(len(table), 2), (self.num_envs,), generator=self.generator,
@@ -207,11 +206,11 @@ class AltitudeTask(Task):
         self.altitude_error.copy_(height - self.target)
         self.reference_error.copy_(height - self.reference)
         elevator = state["surface_position"][:, S.ELEVATOR]
-        torch.div(elevator - self.previous_elevator, self.env_dt, out=self.elevator_rate)
+        torch.div(elevator - self.previous_elevator, self.control_dt, out=self.elevator_rate)
         self.previous_elevator.copy_(elevator)
-        torch.div(state["airspeed"] - self.previous_airspeed, self.env_dt, out=self.airspeed_rate)
+        torch.div(state["airspeed"] - self.previous_airspeed, self.control_dt, out=self.airspeed_rate)
         self.previous_airspeed.copy_(state["airspeed"])
-        self.error_integral.copy_((self.error_integral + (height - self.reference) * self.env_dt)
+        self.error_integral.copy_((self.error_integral + (height - self.reference) * self.control_dt)
                                   .clamp(-cfg.integral_limit, cfg.integral_limit))
 
     def observe(self, state: TensorDictBase) -> torch.Tensor:
@@ -260,14 +259,14 @@ class AltitudeTask(Task):
 
     # ------------------------------------------------------------------ fused step
     def fused_stepper(self) -> FusedStep | None:
-        """:meth:`step` as one Warp kernel on the warp backend (``altitude_warp``; None elsewhere, or
+        """:meth:`step` as one Warp kernel on the warp backend (``altitude.kernels``; None elsewhere, or
         when a subclass overrides a method of the step): (observation [N, 11], reward [N], reason [N]
         long), buffers overwritten by the next call. With ``target_sequence`` the random shift is drawn
         from the task's generator in torch before the launch, exactly as :meth:`step` draws it."""
         if self.sim.backend != "warp":
             return None
-        from .altitude_warp import FusedAltitudeStep
-        from .warp_common import fused_stepper
+        from ..warp_common import fused_stepper
+        from .kernels import FusedAltitudeStep
 
         return fused_stepper(self, AltitudeTask, _FUSED_METHODS, FusedAltitudeStep)
 
@@ -288,110 +287,3 @@ class AltitudeTask(Task):
 #: The methods :meth:`AltitudeTask.fused_step` fuses: a subclass that overrides one falls back to ``step``.
 _FUSED_METHODS: tuple[str, ...] = ("step", "advance", "update", "reward", "observe", "termination_checks",
                                    "termination_reason", "_update_reference", "_release_next_targets")
-
-#: The env this task is built with by default and every recipe trains on: control at 20 Hz
-#: (decimation 5 of the 10 ms physics step), so that gamma 0.99 looks ~5 s ahead; a survival bonus
-#: that outweighs the shaping penalties (ending an episode never pays); no overshoot penalty; sigma_h
-#: 6 m so the Gaussian altitude term still has a gradient 10-15 m from the reference. The paper's
-#: reward is ``survival_bonus=0, w_overshoot=<AltitudeConfig's>, sigma_altitude=<AltitudeConfig's>``.
-TRAINING_ENV_OPTIONS: dict = {"decimation": TRAINING_DECIMATION, "survival_bonus": 1.0, "w_overshoot": 0.0,
-                              "sigma_altitude": 6.0}
-
-#: The paper's altitude protocol columns (Table "altitude-protocol").
-ALTITUDE_METRICS: tuple[Metric, ...] = (
-    Metric("survival", "Surv."), Metric("acquisition", "Acq."), Metric("rmse_m", "RMSE", "m"),
-    Metric("settling_time_s", "t_s", "s"), Metric("overshoot_m", "Over.", "m"))
-
-#: "Solved" on the altitude protocol, as a recipe's ``stop_when``: every episode survives, >= 95 % acquire
-#: the target band and the RMSE after acquisition is <= 0.5 m (``falcon-rl demo --train`` stops there).
-ALTITUDE_SOLVED = "survival>=1,acquisition>=0.95,rmse_m<=0.5"
-
-#: The off-policy critics of the altitude task: 5-step returns and layer norm in the critics. With
-#: one-step targets and plain critics (the recipes' defaults) neither SAC nor TD3 settled on the Ranger
-#: (validation RMSE moving 0.35-1.9 m between snapshots up to 500 k frames; a slow, badly damped capture
-#: after descents); with these, SAC's validations fell steadily to 0.06 m by 350 k frames and TD3's to
-#: 0.009 m by 600 k (seed 0; falcon_rl/policies/README.md).
-OFF_POLICY_CRITIC: dict = {"n_step": 5, "critic_layer_norm": True}
-
-#: The Airship V7's off-policy episodes: 40 s and 700 k frames. Its climb-rate limit is 0.83 m/s, so the
-#: 12-18 m ramp alone takes 14.5-21.7 s and 20 s episodes end on the ramp or a few seconds into the hold;
-#: SAC trained on them (seed 0, 400 k frames) never learned to hold: it settled 0.9-1.7 m below the
-#: target with a steady throttle (100-episode protocol: RMSE 1.39 m, acquisition 0.40). With these, SAC
-#: seeds 0 / 1 / 2 tested 0.27 / 0.80 / 0.006 m (acquisition 0.96 / 0.83 / 1; seeds 0 and 1 hold the V7
-#: 2-7 m/s below its trim airspeed) and TD3 seed 0 0.66 m (0.76), hence :data:`V7_SAC` and :data:`V7_TD3`.
-V7_OFF_POLICY: dict = {"episode_seconds": 40.0, "frames": 700_000}
-
-#: The specific energy-rate penalty weighted 0.5 (``w_energy_rate``; 0 in the paper's reward). The
-#: V7 climbs at its reference rate only near full throttle (trim command +0.49): SAC seeds 0 and 1 on
-#: :data:`V7_OFF_POLICY` climbed on the elevator instead (throttle command 0.42-0.47 over the ramps,
-#: seed 2: 0.92), traded 28 -> 22-24 m/s for height and held the target slow. The airspeed penalty
-#: answers a throttle change only as the speed builds, seconds later; the energy-rate error answers it
-#: at once, and a pitch-up alone cannot meet a ramp's energy rate.
-ENERGY_RATE_PENALTY: dict = {"w_energy_rate": 0.5}
-
-#: The Airship V7's SAC altitude: :data:`V7_OFF_POLICY` and :data:`ENERGY_RATE_PENALTY`. Seeds 0 / 1 / 2
-#: tested 0.014 / 0.018 / 0.014 m, acquisition 1, climbing at throttle 0.91-0.96 at the trim airspeed (on
-#: :data:`V7_OFF_POLICY` alone: 0.271 / 0.802 / 0.006 m, acquisition 0.96 / 0.83 / 1; every variant tried
-#: is in falcon_rl/policies/README.md).
-V7_SAC: dict = {**V7_OFF_POLICY, "env_options": ENERGY_RATE_PENALTY}
-
-#: The airspeed penalty weighted 2.0 instead of 0.5 (``w_airspeed``; the paper's reward, one weight
-#: changed), for the off-policy runs that settle off the trim airspeed: more than 5 % from it the capture
-#: term ``taper(e_h, 1 m) * taper(e_V, 5 %)`` pays nothing and the Gaussian altitude term is flat within a
-#: metre, so only the airspeed penalty leads the policy back to trim and the last metre.
-HEAVIER_AIRSPEED_PENALTY: dict = {"w_airspeed": 2.0}
-
-#: The Airship V7's TD3 altitude: :data:`V7_OFF_POLICY`, 600 k frames and
-#: :data:`HEAVIER_AIRSPEED_PENALTY`. On the defaults TD3 held the V7 2-3 m/s below its trim airspeed
-#: (seed 0: 0.663 m, acquisition 0.76; gamma 0.995 or 10-step returns: validations 1.9-8 m at 400 k
-#: frames); with the heavier airspeed term it flies at trim and seeds 0 / 1 / 2 tested 0.132 / 0.077 /
-#: 0.010 m, acquisition 1 (falcon_rl/policies/README.md).
-V7_TD3: dict = {**V7_OFF_POLICY, "frames": 600_000, "env_options": HEAVIER_AIRSPEED_PENALTY}
-
-#: The Airship V7's PPO altitude: 30 s episodes (the longest ramp, 21.7 s, and the 3 s hold fit), gamma
-#: 0.995, validation every 100 k frames, and training starts |h_0 - h*| ~ U(0, 18) m instead of the
-#: protocol's U(12, 18) (``offset_min`` 0; the validation and the test keep the paper's offsets). On
-#: 12-18 m starts alone the ramp fills most of each episode and the hold is learnt from few steps: it
-#: settled with an offset that changed from snapshot to snapshot (validations 0.1-6.8 m over the last 4 M
-#: frames of seed 0; tests 0.111 / 0.048 / 0.076 m on seeds 0 / 1 / 2), and from a start at the target
-#: (the ground-effect study's pinned hold) 0.3-1 m off, so h/b 0.25 was not held. With near-target starts
-#: seeds 0 / 1 / 2 tested 0.039 / 0.007 / 0.008 m and hold every ground-effect band
-#: (falcon_rl/policies/README.md).
-V7_PPO: dict = {"episode_seconds": 30.0, "gamma": 0.995, "eval_every": 100_000,
-                "env_options": {"offset_min": 0.0}}
-
-#: The Volantex Ranger's SAC altitude: :data:`HEAVIER_AIRSPEED_PENALTY` as well. On the defaults seed 2
-#: held the Ranger 0.3-0.45 m high at 16 m/s, more than 5 % above its 15 m/s trim (0.63 m; 0.56 m after
-#: 700 k frames), while seeds 0 / 1 tested 0.054 / 0.019 m; with it, seeds 0 / 1 / 2 tested 0.187 / 0.164
-#: / 0.057 m, acquisition 1. On the V7 the weight did not help SAC (seed 1: 0.58 m at 700 k frames), so
-#: its SAC keeps 0.5 (:data:`V7_SAC`; falcon_rl/policies/README.md). ``training_defaults`` deep-copies,
-#: so the two defaults never share the dict with a run's config.
-RANGER_SAC: dict = {"env_options": HEAVIER_AIRSPEED_PENALTY}
-
-#: Training defaults (on top of each recipe's own). PPO: 256 envs x 32 steps per batch (8,192 frames),
-#: 20 s episodes, 8 M frames (12 M on the Ranger; the V7: :data:`V7_PPO`); every recipe validates on 16
-#: held-out episodes every 500 k frames (SAC, TD3: 50 k) and ships its best snapshot (``keep_best``); SAC
-#: and TD3 learn with :data:`OFF_POLICY_CRITIC`, SAC anneals its learning rates, TD3 runs 700 k frames.
-#: The Ranger's hold keeps improving past 8 M frames on some seeds and collapses on others (seed 0:
-#: 0.030 m at 8.1 M, 0.25 m at 12 M), so the longer run plus the choice holds it to RMSE 0.009-0.025 m
-#: over three seeds (0.031-0.112 m from the last weights after 8 M). On the Airship V7, 12 M frames with
-#: gamma 0.995 gave 0.056 / 0.106 / 0.009 m on seeds 0 / 1 / 2 (8 M, gamma 0.99: 0.080 / 0.074 / 0.38 m),
-#: but its seed 0 no longer held the ground-effect study's lowest band; the V7's PPO trains with
-#: :data:`V7_PPO`. Every seed and variant tried, PPO, SAC and TD3, is in falcon_rl/policies/README.md.
-SPEC = register_task(TaskSpec(
-    name="altitude", task=AltitudeTask, config=AltitudeConfig, gym_id="falcon_rl/Altitude-v0",
-    title="Altitude acquisition and hold",
-    protocol="falcon_rl.evaluation.protocols:altitude_protocol", metrics=ALTITUDE_METRICS, select_on="rmse_m",
-    controllers={"lqr": "falcon_rl.baselines.lqr:AltitudeLQR.from_env",
-                 "mppi": "falcon_rl.baselines.mppi:altitude_mppi", "trim": TRIM_HOLD},
-    figure="falcon_rl.viz.evaluation:plot_altitude",
-    training={"ppo": {"num_envs": 256, "rollout_steps": 32, "frames": 8_000_000, "episode_seconds": 20.0,
-                      "reward_scale": 0.1, "eval_every": 500_000, "keep_best": True},
-              "sac": {"episode_seconds": 20.0, "eval_every": 50_000, "keep_best": True, **OFF_POLICY_CRITIC,
-                      "anneal_lr": True},
-              "td3": {"episode_seconds": 20.0, "eval_every": 50_000, "keep_best": True, **OFF_POLICY_CRITIC,
-                      "frames": 700_000}},
-    airframe_training={"volantex_ranger": {"ppo": {"frames": 12_000_000}, "sac": RANGER_SAC},
-                       "airship_v7": {"ppo": V7_PPO, "sac": V7_SAC, "td3": V7_TD3}},
-    defaults=TRAINING_ENV_OPTIONS,
-))

@@ -24,7 +24,7 @@ from typing import Any
 
 import torch
 
-from ..airframe_tables import (
+from ..airframe_terms import (
     ALPHA_DOT_VARIABLE,
     MAX_MULTIPLIER_EXPONENT,
     MAX_TABLE_AXES,

@@ -3,7 +3,7 @@ process, one simulator call per step (stable-baselines3 is optional; importing t
 it raises a one-line ImportError).
 
     from stable_baselines3 import PPO
-    from falcon_rl.envs.sb3 import FalconSB3VecEnv
+    from falcon_rl.envs.gym.sb3 import FalconSB3VecEnv
     venv = FalconSB3VecEnv.make("altitude", num_envs=256, airframe="volantex_ranger")
     PPO("MlpPolicy", venv, n_steps=64).learn(1_000_000)
 
@@ -15,7 +15,7 @@ Infos carry only those keys unless ``info_keys`` names task entries ("altitude_e
 "termination_reason", ...) to copy per env (N dictionaries per step cost Python time). ``seed(s)``
 takes effect at the next ``reset()``, which reseeds the whole batch (one seed, distinct draws per
 env). Attributes and methods (``get_attr``, ``set_attr``, ``env_method``) are those of the
-:class:`~falcon_rl.envs.gym_vector.FalconVectorEnv` underneath, one object for every index: reading
+:class:`~falcon_rl.envs.gym.vector.FalconVectorEnv` underneath, one object for every index: reading
 works for any indices, writing and calling act on the whole batch and need all indices.
 """
 
@@ -31,10 +31,11 @@ try:
     from stable_baselines3.common.vec_env import VecEnv
     from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices, VecEnvObs, VecEnvStepReturn
 except ImportError as exc:
-    raise ImportError("falcon_rl.envs.sb3 needs stable-baselines3: pip install stable-baselines3") from exc
+    raise ImportError("falcon_rl.envs.gym.sb3 needs stable-baselines3: pip install stable-baselines3"
+                      ) from exc
 
-from ..physics.engine import fresh_seed
-from .gym_vector import FalconVectorEnv
+from ...physics.engine import fresh_seed
+from .vector import FalconVectorEnv
 
 
 class FalconSB3VecEnv(VecEnv):

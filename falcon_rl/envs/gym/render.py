@@ -16,8 +16,8 @@ from typing import Any
 
 import numpy as np
 
-from ..physics import state as S
-from .tasks.registry import Ref, resolve
+from ...physics import state as S
+from ..tasks.registry import Ref, resolve
 
 #: The live view the renders draw with.
 FLIGHT_VIEW: Ref = "falcon_rl.viz.live:FlightView"

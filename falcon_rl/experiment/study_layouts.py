@@ -6,10 +6,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ..envs.maneuvers import MANEUVERS
-from ..evaluation.ground_effect_table import H_OVER_B
+from ..evaluation.ground_effect_trim import H_OVER_B
 from ..evaluation.robustness import FAMILIES
 from ..transforms.presets import GRID
-from .tables import Column
+from .results import Column
 
 _TITLES = {"circle": "Circle", "figure8": "Fig.-8", "helix": "Helix", "s_turn": "S-turn"}
 

@@ -18,9 +18,9 @@ from typing import TYPE_CHECKING, Any
 
 import warp as wp
 
-from ...constants import DEG
-from ...physics._warp import forward_only
-from .warp_common import (
+from ....constants import DEG
+from ....physics._warp import forward_only
+from ..warp_common import (
     FlightState,
     FusedStep,
     SimulatorViews,
@@ -31,12 +31,12 @@ from .warp_common import (
     gaussian_wp,
     termination_code,
 )
-from .warp_task_kernels import task_kernels
+from ..warp_task_kernels import task_kernels
 
 forward_only(__name__)
 
 if TYPE_CHECKING:
-    from .base import Task
+    from ..base import Task
 
 
 @wp.struct
@@ -61,7 +61,7 @@ class TrajectoryBuffers:
 class TrajectoryConstants:
     """Config and airframe constants, each the float32 the torch step's scalar becomes."""
 
-    env_dt: float
+    control_dt: float
     speed: float  # cruise speed V of the reference
     lost_distance: float
     velocity_scale: float  # airspeed_scale x V
@@ -138,7 +138,7 @@ def trajectory_step(sim: SimulatorViews, buf: TrajectoryBuffers, c: TrajectoryCo
     """One trajectory-task step of env i after the physics: updates the buffers in place
     and writes observation [N, 17], reward [N] and the termination reason [N] (0: flying)."""
     f = flight_state(sim, i)
-    time = buf.time[i] + c.env_dt
+    time = buf.time[i] + c.control_dt
     buf.time[i] = time
     reference_point(buf, c, time, i)
     update_errors(f, buf, i)
@@ -202,7 +202,7 @@ class FusedTrajectoryStep(FusedStep):
                          "previous_action")})
         fill_struct(buf, {"action": self.action})
         constants = fill_struct(TrajectoryConstants(), {
-            "env_dt": task.env_dt, "speed": task.speed, "lost_distance": cfg.lost_distance,
+            "control_dt": task.control_dt, "speed": task.speed, "lost_distance": cfg.lost_distance,
             "velocity_scale": cfg.airspeed_scale * task.speed, "angle_scale": math.pi / 4,
             "air_angle_scale": 20.0 * DEG, "w_position": cfg.w_position, "sigma_position": cfg.sigma_position,
             "w_velocity": cfg.w_velocity, "sigma_velocity": cfg.sigma_velocity_fraction * task.speed,

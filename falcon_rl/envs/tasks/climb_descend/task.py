@@ -19,8 +19,7 @@ from typing import ClassVar
 
 import torch
 
-from .altitude import AltitudeConfig, AltitudeTask
-from .registry import TRIM_HOLD, Metric, TaskSpec, register_task
+from ..altitude import AltitudeConfig, AltitudeTask
 
 
 @dataclass
@@ -61,19 +60,3 @@ class ClimbDescendTask(AltitudeTask):
         rate = self.uniform(cfg.rate_min, cfg.rate_max) * self.airframe.envelope.climb_rate_limit
         self.climb_rate.copy_(torch.where(mask, rate, self.climb_rate))
         return super().sample_initial(mask)
-
-
-#: The altitude baselines read the same ("task", ...) keys (reference_altitude, reference_climb_rate,
-#: target_altitude), so they fly this task too.
-SPEC = register_task(TaskSpec(
-    name="climb_descend", task=ClimbDescendTask, config=ClimbDescendConfig,
-    gym_id="falcon_rl/ClimbDescend-v0", title="Climb and descend",
-    protocol="falcon_rl.evaluation.protocols:climb_descend_protocol", select_on="ramp_rmse_m",
-    metrics=(Metric("survival", "Surv."), Metric("climb_rate_rmse_mps", "hdot RMSE", "m/s"),
-             Metric("ramp_rmse_m", "ramp RMSE", "m"), Metric("level_off", "Level-off"),
-             Metric("level_off_time_s", "t_level", "s"), Metric("level_off_rmse_m", "level RMSE", "m"),
-             Metric("overshoot_m", "Over.", "m")),
-    controllers={"lqr": "falcon_rl.baselines.lqr:AltitudeLQR.from_env",
-                 "mppi": "falcon_rl.baselines.mppi:altitude_mppi", "trim": TRIM_HOLD},
-    figure="falcon_rl.viz.tracking:plot_climb_descend",
-))

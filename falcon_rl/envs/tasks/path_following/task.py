@@ -22,7 +22,7 @@ course_error, altitude_error and the path: path_point [2] (north, east, m), path
 path_height (m).
 
 On the warp backend the env's step runs :meth:`PathFollowingTask.fused_step`: all of the above after
-the physics in one Warp kernel (``path_following_warp``).
+the physics in one Warp kernel (``path_following.kernels``).
 """
 
 from __future__ import annotations
@@ -34,14 +34,13 @@ from typing import TYPE_CHECKING, ClassVar
 import torch
 from tensordict import TensorDictBase
 
-from ...constants import DEG
-from ...physics import Simulator
-from ...physics import state as S
-from .base import Task, TaskConfig, airspeed_margin_penalty, gaussian, wrap_angle
-from .registry import TRIM_HOLD, Metric, TaskSpec, register_task
+from ....constants import DEG
+from ....physics import Simulator
+from ....physics import state as S
+from ..base import Task, TaskConfig, airspeed_margin_penalty, gaussian, wrap_angle
 
 if TYPE_CHECKING:
-    from .warp_common import FusedStep
+    from ..warp_common import FusedStep
 
 
 @dataclass
@@ -82,8 +81,8 @@ class PathFollowingTask(Task):
     config: PathFollowingConfig
 
     def __init__(self, config: PathFollowingConfig, sim: Simulator, generator: torch.Generator,
-                 env_dt: float, ground_effect: bool | str = True):
-        super().__init__(config, sim, generator, env_dt, ground_effect)
+                 control_dt: float, ground_effect: bool | str = True):
+        super().__init__(config, sim, generator, control_dt, ground_effect)
         n, kw = self.num_envs, {"device": self.device, "dtype": self.dtype}
         self.path_point = torch.zeros(n, 2, **kw)  # (north, east) m
         self.path_course = torch.zeros(n, **kw)
@@ -146,13 +145,13 @@ class PathFollowingTask(Task):
         return {**super().termination_checks(state), "lost": lost}
 
     def fused_stepper(self) -> FusedStep | None:
-        """:meth:`step` as one Warp kernel on the warp backend (``path_following_warp``; None elsewhere,
+        """:meth:`step` as one Warp kernel on the warp backend (``path_following.kernels``; None elsewhere,
         or when a subclass overrides a method of the step): (observation [N, 17], reward [N], reason [N]
         long), buffers overwritten by the next call."""
         if self.sim.backend != "warp":
             return None
-        from .path_following_warp import FusedPathFollowingStep
-        from .warp_common import fused_stepper
+        from ..warp_common import fused_stepper
+        from .kernels import FusedPathFollowingStep
 
         return fused_stepper(self, PathFollowingTask, _FUSED_METHODS, FusedPathFollowingStep)
 
@@ -167,14 +166,3 @@ class PathFollowingTask(Task):
 #: ``step``.
 _FUSED_METHODS: tuple[str, ...] = ("step", "advance", "update", "reward", "observe", "termination_checks",
                                    "termination_reason")
-
-SPEC = register_task(TaskSpec(
-    name="path_following", task=PathFollowingTask, config=PathFollowingConfig,
-    gym_id="falcon_rl/PathFollowing-v0", title="Straight-line path following",
-    protocol="falcon_rl.evaluation.protocols:path_following_protocol", select_on="cross_track_rmse_m",
-    metrics=(Metric("survival", "Surv."), Metric("completion", "Compl."),
-             Metric("cross_track_rmse_m", "e_y RMSE", "m"), Metric("capture_time_s", "t_capture", "s"),
-             Metric("course_rmse_deg", "course RMSE", "deg"), Metric("altitude_rmse_m", "h RMSE", "m")),
-    controllers={"trim": TRIM_HOLD},
-    figure="falcon_rl.viz.tracking:plot_path_following",
-))

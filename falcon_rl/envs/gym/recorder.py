@@ -20,7 +20,7 @@ import gymnasium
 import numpy as np
 from gymnasium.vector import VectorWrapper
 
-from ..recording import FlightLog, Recording, save_recording, task_extras
+from ...recording import FlightLog, Recording, save_recording, task_extras
 
 
 def _flight_base(env: Any) -> Any:
@@ -85,7 +85,7 @@ class RecordFlight(gymnasium.Wrapper, _Recorder):
 
 
 class RecordFlightVector(VectorWrapper, _Recorder):
-    """Records the envs ``env_ids`` of a :class:`~falcon_rl.envs.gym_vector.FalconVectorEnv`;
+    """Records the envs ``env_ids`` of a :class:`~falcon_rl.envs.gym.vector.FalconVectorEnv`;
     ``path`` is written on :meth:`close`."""
 
     def __init__(self, env: Any, path: str | Path | None = None, env_ids: Iterable[int] = (0,),

@@ -8,7 +8,7 @@ where T is a 0-3 dimensional table over some of the variables x (:data:`TABLE_VA
 multilinear interpolation and clamped at the edges of each axis, and the product is a monomial
 multiplier (exponents 0..3). This is the shape most JSBSim ``<aerodynamics>`` functions take once the
 reference factors (qbar S, times b or c for a moment) are divided out. The physics evaluates every term
-of every airframe with one kernel (``physics/tables.py``): the terms are data bound at run time.
+of every airframe with one kernel (``physics/interpolated_terms.py``): the terms are data bound at run time.
 
 JSON (``aero.tables``, and ``propulsion.thrust_map`` for the motors whose ``model`` is "thrust_map")::
 

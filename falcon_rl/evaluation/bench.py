@@ -22,7 +22,8 @@ from typing import Any
 
 import torch
 
-from .physics.simulator import Simulator
+from ..airframe import DEFAULT_AIRFRAME
+from ..physics.simulator import Simulator
 
 JSBSIM_MODEL = "c172p"
 
@@ -66,7 +67,7 @@ class BenchConfig:
     trials: int = 5
     warmup: int = 10
     device: str = "cpu"
-    airframe: str = "navion"
+    airframe: str = DEFAULT_AIRFRAME
     dt: float = 0.01
     integrator: str = "rk4"
     baseline: str | None = None
@@ -150,7 +151,7 @@ def env_stepper(env: Any) -> Callable[[], None]:
 def time_env(cfg: BenchConfig, backend: str, num_envs: int) -> BenchCase | None:
     """Time the TorchRL "altitude" env's ``step_and_maybe_reset`` (None if envs are unavailable)."""
     try:
-        from .envs import make_env
+        from ..envs import make_env
     except (ImportError, AttributeError):
         return None
     case = BenchCase("env", backend, cfg.device, num_envs, cfg.steps, cfg.trials)

@@ -25,7 +25,7 @@ out). Keyword arguments are those of :func:`falcon_rl.envs.make_env`; the backen
 smaller of it and the env's own horizon, as ``gymnasium.make``'s TimeLimit does.
 
 Speed: without robustness options the batch steps through the env's tensor core
-(:class:`~falcon_rl.envs.gym_core.TensorCore`: no TensorDicts, host arrays from one device-to-host
+(:class:`~falcon_rl.envs.gym.core.TensorCore`: no TensorDicts, host arrays from one device-to-host
 copy per step); ``fast_path=False``, or any robustness option (a ``TransformedEnv``), steps through
 TorchRL's ``step_and_maybe_reset``, which runs the transforms. Both give the same numbers
 (tests/test_gym_vector.py steps them side by side).
@@ -41,10 +41,11 @@ import torch
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from ..transforms import flight_env
-from .gym import DEFAULT_BACKEND, action_tensor, as_action, build_env, reseed, single_spaces, task_arrays
-from .gym_core import TensorCore, Transition, tensor_core_env
-from .gym_render import GymRenderer
+from ...airframe import DEFAULT_AIRFRAME
+from ...transforms import flight_env
+from . import DEFAULT_BACKEND, action_tensor, as_action, build_env, reseed, single_spaces, task_arrays
+from .core import TensorCore, Transition, tensor_core_env
+from .render import GymRenderer
 
 #: The most sub-envs a vector env renders (one chase view each).
 MAX_RENDERED_ENVS = 16
@@ -57,7 +58,7 @@ class FalconVectorEnv(VectorEnv):
     metadata: dict[str, Any] = {"autoreset_mode": AutoresetMode.SAME_STEP,  # noqa: RUF012 (gymnasium's)
                                 "render_modes": ["rgb_array"]}
 
-    def __init__(self, num_envs: int = 1, task: str = "altitude", airframe: str = "navion",
+    def __init__(self, num_envs: int = 1, task: str = "altitude", airframe: str = DEFAULT_AIRFRAME,
                  backend: str = DEFAULT_BACKEND, device: str = "cpu", seed: int | None = None,
                  max_episode_steps: int | None = None, fast_path: bool = True,
                  render_mode: str | None = None, **options: Any):
@@ -85,7 +86,7 @@ class FalconVectorEnv(VectorEnv):
         self.core: TensorCore | None = None if core is None else TensorCore(core)
         self._data: Any = None  # the TorchRL path's current TensorDict
         self._started = False
-        #: Gymnasium's render mode; one view per sub-env, built only when rendering (``gym_render``).
+        #: Gymnasium's render mode; one view per sub-env, built only when rendering (``gym.render``).
         self.render_mode = render_mode
         self.metadata = {**self.metadata, "render_fps": 1.0 / base.control_dt}
         self._renderers = [] if render_mode is None else [
