@@ -18,7 +18,7 @@ from collections.abc import Callable
 import torch
 
 from falcon_rl import make_env
-from falcon_rl.airframe import DEFAULT_AIRFRAME
+from falcon_rl.defaults import DEFAULT_AIRFRAME
 from falcon_rl.evaluation.bench import env_stepper
 
 

@@ -58,7 +58,7 @@ from torchrl.envs import EnvBase
 from tqdm import tqdm
 
 from falcon_rl import make_env
-from falcon_rl.airframe import DEFAULT_AIRFRAME
+from falcon_rl.defaults import DEFAULT_AIRFRAME
 from falcon_rl.envs.tasks import TERMINATION_REASONS
 from falcon_rl.evaluation.bench import BenchCase, _cpu_name, _time_blocks, env_stepper, plot
 

@@ -34,7 +34,7 @@ import gymnasium as gym
 import numpy as np
 import torch
 
-from falcon_rl.airframe import DEFAULT_AIRFRAME
+from falcon_rl.defaults import DEFAULT_AIRFRAME
 from falcon_rl.envs import make_env
 from falcon_rl.envs.gym import GYM_IDS, CoreAircraftEnv, register_gym_envs
 from falcon_rl.envs.gym.vector import FalconVectorEnv

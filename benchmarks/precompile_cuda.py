@@ -27,7 +27,7 @@ import warp as wp
 from tqdm import tqdm
 
 from falcon_rl import make_env
-from falcon_rl.airframe import DEFAULT_AIRFRAME
+from falcon_rl.defaults import DEFAULT_AIRFRAME
 
 
 def task_modules(task: str, airframe: str) -> list[Any]:

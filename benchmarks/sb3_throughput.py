@@ -33,7 +33,7 @@ from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv
 
-from falcon_rl.airframe import DEFAULT_AIRFRAME
+from falcon_rl.defaults import DEFAULT_AIRFRAME
 from falcon_rl.envs.gym import GYM_IDS, register_gym_envs
 from falcon_rl.envs.gym.sb3 import FalconSB3VecEnv
 

@@ -15,7 +15,7 @@ import matplotlib.pyplot as plt
 import torch
 
 from falcon_rl import Simulator, load_airframe, trim_level
-from falcon_rl.airframe import DEFAULT_AIRFRAME
+from falcon_rl.defaults import DEFAULT_AIRFRAME
 
 
 def main() -> None:

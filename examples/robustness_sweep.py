@@ -20,7 +20,7 @@ import json
 
 import torch
 
-from falcon_rl.airframe import DEFAULT_AIRFRAME
+from falcon_rl.defaults import DEFAULT_AIRFRAME
 from falcon_rl.evaluation.controllers import reused_controller
 from falcon_rl.evaluation.robustness import FAMILIES, robustness_grid
 from falcon_rl.transforms.presets import GRID

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import argparse
 
-from falcon_rl.airframe import DEFAULT_AIRFRAME
+from falcon_rl.defaults import DEFAULT_AIRFRAME
 from falcon_rl.envs.tasks import task_names
 from falcon_rl.recipes import ppo, sac, td3
 

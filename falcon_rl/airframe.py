@@ -174,11 +174,6 @@ class Airframe:
         }
 
 
-#: The airframe every entry point flies when none is named (make_env, the Gymnasium ids, the CLI, the
-#: recipes, the benchmarks): the Volantex Ranger, the paper's small UAV and the speed targets' airframe.
-DEFAULT_AIRFRAME = "volantex_ranger"
-
-
 def list_airframes() -> list[str]:
     """Names of the airframes shipped with falcon-rl."""
     return sorted(p.stem for p in _shipped_files())

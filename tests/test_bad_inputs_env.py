@@ -266,7 +266,7 @@ def test_the_paper_defaults_and_lists_from_json_pass_the_option_checks():
 
 @pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
 def test_finite_rows_flags_exactly_the_rows_with_a_nan_or_an_infinity(dtype: torch.dtype) -> None:
-    from falcon_rl.envs.fixed_wing import finite_rows
+    from falcon_rl.envs.staged_step import finite_rows
 
     generator = torch.Generator().manual_seed(0)
     values = torch.randn(64, 39, generator=generator, dtype=dtype) * 10.0 ** torch.randint(

@@ -1,7 +1,7 @@
-"""The env step as one Warp launch (``tasks.warp_env_step``) against the same step run as separate stages
-(the engine's launch, the task's fused launch, the torch action check, guard and counters), bit for bit;
-the crash state inside the engine's kernel against its torch twin; and the Gymnasium NumPy step against
-the tensor core."""
+"""The env step as one Warp launch (``physics.fused_env_step``, ``Engine.fuse``) against the same step run
+as separate stages (the engine's launch, the task's fused launch, the torch action check, guard and
+counters), bit for bit; the crash state inside the engine's kernel against its torch twin; and the
+Gymnasium NumPy step against the tensor core."""
 
 from __future__ import annotations
 
@@ -13,7 +13,9 @@ import torch
 from tensordict import TensorDict
 
 from falcon_rl.envs import make_env
+from falcon_rl.envs.fixed_wing import StepTensors
 from falcon_rl.envs.gym import CoreAircraftEnv
+from falcon_rl.envs.staged_step import StagedEnvStep
 from falcon_rl.envs.tasks import TERMINATION_CODE, AltitudeTask
 from falcon_rl.physics import Simulator, warp_backend
 from falcon_rl.physics import state as S
@@ -21,6 +23,12 @@ from falcon_rl.physics._warp import capture_cpu_graph, init_warp
 
 FUSED_TASKS = ("altitude", "attitude", "path_following", "trajectory", "climb_descend")
 N = 16
+
+
+def staged_step(env, action: torch.Tensor) -> StepTensors:
+    """``env``'s step as stages (``StagedEnvStep``: the engine's step, the task's fused launch, the torch
+    action check, guard and counters), as the env's :class:`StepTensors`."""
+    return StepTensors(*StagedEnvStep(env)(action, with_state=False), None)
 
 
 def _pair(task: str, **options: object) -> tuple:
@@ -71,7 +79,7 @@ def test_one_launch_step_equals_the_staged_step(task: str, options: dict) -> Non
             _dive(one), _dive(two)
         action = _actions(step, one.task.action_dim, generator)
         fused = one.step_tensors(action, with_state=False)
-        staged = two._step_glued(action, with_state=False)
+        staged = staged_step(two, action)
         for name, a, b in zip(fused._fields, fused, staged, strict=True):
             if a is not None:
                 assert torch.equal(a, b), (step, name)
@@ -98,7 +106,7 @@ def test_the_lean_torchrl_step_hands_out_what_the_staged_step_does_in_new_tensor
             _dive(one), _dive(two)
         action = _actions(step, 2, generator).float()
         got = one._step(TensorDict(action=action, batch_size=[N]))
-        staged = two._step_glued(action, with_state=False)
+        staged = staged_step(two, action)
         want = two._output(staged.observation, None, staged.reason, staged.truncated.unsqueeze(-1),
                            reward=staged.reward.unsqueeze(-1))
         assert set(got.keys()) == set(want.keys())
@@ -144,13 +152,13 @@ def test_the_one_launch_step_applies_only_where_it_reproduces_the_env() -> None:
 def test_the_step_follows_a_new_parameter_set_and_horizon() -> None:
     one, two = _pair("altitude")
     zero = torch.zeros(N, 2)
-    one.step_tensors(zero), two._step_glued(zero, with_state=False)
+    one.step_tensors(zero), staged_step(two, zero)
     for env in (one, two):  # a new parameters object (heavier aircraft) and a shorter horizon
         params = env.sim.params
         env.sim.params = type(params)(**{**vars(params), "mass": params.mass * 1.3})
         env.max_episode_steps = 3
     for _ in range(3):
-        fused, staged = one.step_tensors(zero), two._step_glued(zero, with_state=False)
+        fused, staged = one.step_tensors(zero), staged_step(two, zero)
         assert torch.equal(fused.observation, staged.observation)
     assert fused.truncated.all() and torch.equal(fused.truncated, staged.truncated)
     _assert_same(one, two)
@@ -265,7 +273,7 @@ def test_one_launch_step_equals_the_staged_step_on_cuda(task: str) -> None:
     generator = torch.Generator().manual_seed(1)
     for step in range(30):
         action = _actions(step, one.task.action_dim, generator)[:1].expand(256, -1).cuda()
-        fused, staged = one.step_tensors(action, with_state=False), two._step_glued(action, with_state=False)
+        fused, staged = one.step_tensors(action, with_state=False), staged_step(two, action)
         for name, a, b in zip(fused._fields, fused, staged, strict=True):
             if a is None:
                 continue

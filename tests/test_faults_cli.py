@@ -27,7 +27,7 @@ import pytest
 import torch
 
 import falcon_rl.envs
-import falcon_rl.envs.tasks.attitude
+import falcon_rl.envs.tasks.attitude.task
 import falcon_rl.evaluation.controllers
 import falcon_rl.evaluation.report
 from falcon_rl.cli import main
@@ -188,8 +188,8 @@ def falling_controller(monkeypatch) -> None:
 
 def short_maneuvers(monkeypatch) -> None:
     """Every maneuver's command stream cut to its first 0.5 s."""
-    stream = falcon_rl.envs.tasks.attitude.maneuver_stream
-    monkeypatch.setattr(falcon_rl.envs.tasks.attitude, "maneuver_stream",
+    stream = falcon_rl.envs.tasks.attitude.task.maneuver_stream
+    monkeypatch.setattr(falcon_rl.envs.tasks.attitude.task, "maneuver_stream",
                         lambda name, airframe, dt: stream(name, airframe, dt)[: round(0.5 / dt)])
 
 

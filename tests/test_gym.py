@@ -145,8 +145,8 @@ def test_tensor_core_steps_exactly_as_torchrl_step(options: dict) -> None:
     """The fast path (the env's tensor core) and TorchRL's step, side by side from one seed: the same
     observations, rewards, flags and infos (types included) through truncations, an alpha stall, a
     NaN action, a NaN state (its entries zeroed), infinite actions, reseeded and unseeded resets."""
-    fast = CoreAircraftEnv("altitude", seed=3, episode_seconds=1.5, **options)  # 30 steps
-    slow = CoreAircraftEnv("altitude", seed=3, episode_seconds=1.5, fast_path=False, **options)
+    fast = CoreAircraftEnv("altitude", "navion", seed=3, episode_seconds=1.5, **options)  # 30 steps
+    slow = CoreAircraftEnv("altitude", "navion", seed=3, episode_seconds=1.5, fast_path=False, **options)
     assert fast.core is not None and slow.core is None
     rng, reasons = np.random.default_rng(0), []
     assert_identical(fast.reset(seed=11), slow.reset(seed=11), "reset")

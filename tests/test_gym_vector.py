@@ -82,7 +82,7 @@ def test_seeded_reset_is_reproducible_with_distinct_sub_envs_and_none_is_fresh()
 def test_same_step_autoreset_is_exact() -> None:
     """Against TorchRL's own step and reset of the same env: the done step returns the last
     transition's flags and reward, the next episode's first observation and the final one in info."""
-    envs = make(4, seed=1, **SHORT)
+    envs = make(4, airframe="navion", seed=1, **SHORT)
     reference = make_env("altitude", "navion", num_envs=4, backend="warp", seed=1, **SHORT)
     action = torch.tensor([[0.2, -0.1]]).expand(4, 2)
     envs.reset(seed=3)
@@ -216,8 +216,8 @@ def test_tensor_core_steps_exactly_as_torchrl_step_and_maybe_reset(task: str, op
     seed: the same observations, rewards, flags and infos (final_obs and final_info included) through
     autoresets after truncations, alpha stalls, NaN actions and a NaN state, a partial reset and a
     reseeded reset; what the fast path hands out is overwritten each time (it keeps no view of it)."""
-    fast = FalconVectorEnv(6, task, seed=4, episode_seconds=1.0, **options)  # 20 steps per episode
-    slow = FalconVectorEnv(6, task, seed=4, episode_seconds=1.0, fast_path=False, **options)
+    fast = FalconVectorEnv(6, task, "navion", seed=4, episode_seconds=1.0, **options)  # 20 steps per episode
+    slow = FalconVectorEnv(6, task, "navion", seed=4, episode_seconds=1.0, fast_path=False, **options)
     assert fast.core is not None and slow.core is None
     fast.core.pack = pack
     rng, seen = np.random.default_rng(1), set()

@@ -25,7 +25,7 @@ PACKAGE_DIR = Path(__file__).resolve().parents[1] / ROOT
 #: ``validation`` and ``derive`` import only physics and the airframe, so they sit on the lowest layer that
 #: allows it.
 LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
-    ("constants", ("falcon_rl.constants", "falcon_rl._lazy", "falcon_rl.atomic_files")),
+    ("constants", ("falcon_rl.constants", "falcon_rl.defaults", "falcon_rl._lazy", "falcon_rl.atomic_files")),
     ("airframe", ("falcon_rl.airframe", "falcon_rl.airframe_terms")),
     ("physics / recording", ("falcon_rl.physics", "falcon_rl.recording", "falcon_rl.recording_schema")),
     ("envs / transforms / baselines / policies / validation / derive",

@@ -102,8 +102,10 @@ def test_tensor_core_adapter_steps_exactly_as_the_torchrl_path(info_keys: tuple[
     """Fast path and TorchRL path side by side from one seed: the same obs, rewards, dones, infos
     (terminal_observation, TimeLimit.truncated, task entries) and reset_infos through truncations,
     alpha stalls, a NaN action, a NaN state, and a reseeded reset."""
-    fast = FalconSB3VecEnv.make("altitude", num_envs=4, info_keys=info_keys, seed=2, episode_seconds=1.0)
-    slow = FalconSB3VecEnv.make("altitude", num_envs=4, info_keys=info_keys, seed=2, episode_seconds=1.0,
+    fast = FalconSB3VecEnv.make("altitude", num_envs=4, airframe="navion", info_keys=info_keys, seed=2,
+                                episode_seconds=1.0)
+    slow = FalconSB3VecEnv.make("altitude", num_envs=4, airframe="navion", info_keys=info_keys, seed=2,
+                                episode_seconds=1.0,
                                 fast_path=False)
     assert fast.venv.core is not None and slow.venv.core is None
     rng, reasons = np.random.default_rng(3), set()

@@ -132,7 +132,7 @@ class MPPI(TensorDictModuleBase):
         self.shift = self.replan_every // self.plan_hold
         if not (isinstance(cfg.hold_fraction, int | float) and 0.0 <= cfg.hold_fraction < 1.0):
             raise ValueError(f"hold_fraction must be a number in [0, 1), got {cfg.hold_fraction!r}")
-        backend = "warp" if env.config.backend == "warp" else "torch"
+        backend = env.config.backend  # the planner's rollouts on the env's own backend
         self.substeps = stable_substeps(env.sim.airframe, cfg.plan_dt, cfg.stability_margin)
         self.planner = Simulator(env.sim.airframe, self.n * self.k, backend=backend, device=env.device,
                                  dt=cfg.plan_dt / self.substeps, ground_effect=env.config.ground_effect,

@@ -61,7 +61,7 @@ import numpy as np
 import torch
 from tensordict import TensorDict, TensorDictBase
 
-from ..airframe import DEFAULT_AIRFRAME
+from ..defaults import DEFAULT_AIRFRAME, DEFAULT_BACKEND
 from ..envs import STATE_KEYS, FixedWingEnv, make_env
 from ..envs.layout import column
 from ..envs.tasks import TERMINATION_REASONS
@@ -169,7 +169,7 @@ class XPlaneBridge:
 
     def __init__(self, host: str = LOOPBACK, port: int = P.XPLANE_PORT, *, task: str = "altitude",
                  airframe: str = DEFAULT_AIRFRAME, controller: str = "lqr", seconds: float | None = None,
-                 seed: int = 0, backend: str = "warp", decimation: int | None = None,
+                 seed: int = 0, backend: str = DEFAULT_BACKEND, decimation: int | None = None,
                  pacing: str = "lockstep",
                  timeout: float = 2.0, bind: str = LOOPBACK, reference: ReferencePoint | None = None,
                  frequency: int | None = None, env_options: dict[str, Any] | None = None) -> None:

@@ -49,8 +49,9 @@ from typing import Any
 import numpy as np
 import torch
 
-from ..airframe import DEFAULT_AIRFRAME, Airframe, load_airframe
+from ..airframe import Airframe, load_airframe
 from ..constants import KT
+from ..defaults import DEFAULT_AIRFRAME, DEFAULT_BACKEND
 from ..physics import Simulator
 from ..physics import state as S
 from ..physics.atmosphere import isa_density
@@ -92,7 +93,8 @@ class XPlaneStandIn:
     """
 
     def __init__(self, airframe: Airframe | str = DEFAULT_AIRFRAME, host: str = LOOPBACK, port: int = 0, *,
-                 mode: str = "lockstep", frame_seconds: float = 0.05, dt: float = 0.01, backend: str = "warp",
+                 mode: str = "lockstep", frame_seconds: float = 0.05, dt: float = 0.01,
+                 backend: str = DEFAULT_BACKEND,
                  reference: ReferencePoint | None = None, ground_effect: bool | str = True) -> None:
         if mode not in ("lockstep", "realtime"):
             raise ValueError(f"mode must be 'lockstep' or 'realtime', got {mode!r}")

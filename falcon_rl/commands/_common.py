@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from ..atomic_files import TEMPORARY_SUFFIX, temporary_prefix
+from ..defaults import BATCH_BACKENDS, DEFAULT_BACKEND
 
 #: Largest integer a count flag accepts (a 400-digit integer is a typo, not a request).
 MAX_COUNT = 10**9
@@ -227,7 +228,7 @@ def add_flight_arguments(parser: argparse.ArgumentParser, seconds_help: str, out
     """The options every command that flies a protocol takes: --seed, --backend, --device, --seconds
     (episode length), --out and --threads (see :func:`use_threads`)."""
     parser.add_argument("--seed", type=nonnegative_int, default=0)
-    parser.add_argument("--backend", choices=["torch", "warp"], default="warp",
+    parser.add_argument("--backend", choices=BATCH_BACKENDS, default=DEFAULT_BACKEND,
                         help="simulator (default warp)")
     parser.add_argument("--device", default="cpu", help="cpu or cuda[:N] (default cpu)")
     parser.add_argument("--seconds", type=episode_seconds, default=None, help=seconds_help)

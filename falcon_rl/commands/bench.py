@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from ..airframe import DEFAULT_AIRFRAME
+from ..defaults import BATCH_BACKENDS, DEFAULT_AIRFRAME
 from ._common import (
     UsageError,
     bounded_float,
@@ -20,22 +20,23 @@ from ._common import (
 NAME = "bench"
 HELP = "time Simulator.step (and the TorchRL env) per backend and env count, optionally vs JSBSim"
 
-#: Not an engine of its own: the torch engine with ``compile=True``.
-TORCH_COMPILE = "torch-compile"
 #: Most envs of one case (a batch beyond it is a typo that would exhaust memory, not a benchmark).
 MAX_ENVS = 1 << 20
 _env_count = bounded_int(1, MAX_ENVS)
 
 
 def bench_backends() -> tuple[str, ...]:
-    """The registered engines (``physics.backends.ENGINES``) plus torch-compile."""
-    from ..physics.backends import ENGINES
+    """The registered engines (``physics.backends.ENGINES``) plus ``<name>-compile`` for each engine that
+    steps through ``torch.compile`` (its ``compile`` option)."""
+    from ..evaluation.bench import COMPILED_SUFFIX
+    from ..physics.backends import ENGINES, engine_class
 
-    return (*ENGINES, TORCH_COMPILE)
+    compiled = (name + COMPILED_SUFFIX for name in ENGINES if "compile" in engine_class(name).OPTIONS)
+    return (*ENGINES, *compiled)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--backend", default="torch,warp",
+    parser.add_argument("--backend", default=",".join(BATCH_BACKENDS),
                         help="comma list of registered backends (torch, warp, scipy, ...) and torch-compile "
                              "(torch through torch.compile)")
     parser.add_argument("--envs", default="1,64,1024,4096",

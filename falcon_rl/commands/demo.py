@@ -25,8 +25,8 @@ import time
 from pathlib import Path
 from typing import TextIO
 
-from ..airframe import DEFAULT_AIRFRAME
 from ..atomic_files import write_atomic
+from ..defaults import BATCH_BACKENDS, DEFAULT_AIRFRAME, DEFAULT_BACKEND
 from ._common import (
     bounded_int,
     comma_list,
@@ -114,7 +114,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "cores)")
     parser.add_argument("--frames", type=positive_int, default=None,
                         help="with --train: the most env steps it may take (default: the recipe's)")
-    parser.add_argument("--backend", choices=["torch", "warp"], default="warp",
+    parser.add_argument("--backend", choices=BATCH_BACKENDS, default=DEFAULT_BACKEND,
                         help="simulator (default warp)")
     parser.add_argument("--seed", type=nonnegative_int, default=0)
     parser.add_argument("--threads", type=bounded_int(1, 4096), default=1, help="torch CPU threads")

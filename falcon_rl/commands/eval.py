@@ -21,7 +21,7 @@ import sys
 from datetime import datetime, timezone
 from pathlib import Path
 
-from ..airframe import DEFAULT_AIRFRAME
+from ..defaults import DEFAULT_AIRFRAME
 from ._common import (
     UsageError,
     add_flight_arguments,

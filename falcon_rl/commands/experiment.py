@@ -30,8 +30,8 @@ import argparse
 import json
 from pathlib import Path
 
-from ..airframe import DEFAULT_AIRFRAME
 from ..atomic_files import write_atomic
+from ..defaults import DEFAULT_AIRFRAME
 from ._common import (
     add_flight_arguments,
     check_controller,

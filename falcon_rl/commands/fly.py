@@ -27,7 +27,7 @@ import argparse
 import sys
 from typing import Any
 
-from ..airframe import DEFAULT_AIRFRAME
+from ..defaults import DEFAULT_AIRFRAME
 from ._common import (
     UsageError,
     add_flight_arguments,

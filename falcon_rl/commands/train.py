@@ -32,7 +32,7 @@ import ast
 import importlib.util
 import math
 
-from ..airframe import DEFAULT_AIRFRAME
+from ..defaults import BATCH_BACKENDS, DEFAULT_AIRFRAME, DEFAULT_BACKEND
 from ._common import (
     UsageError,
     check_device,
@@ -55,7 +55,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--frames", type=positive_int, default=None,
                         help="total env steps (default: the recipe's)")
     parser.add_argument("--device", default="cpu")
-    parser.add_argument("--backend", choices=["torch", "warp"], default="warp",
+    parser.add_argument("--backend", choices=BATCH_BACKENDS, default=DEFAULT_BACKEND,
                         help="simulator backend (default warp, the fastest; torch: the reference)")
     parser.add_argument("--seed", type=nonnegative_int, default=0)
     parser.add_argument("--out", default=None, help="output folder (default runs/<alg>_<task>_<airframe>)")

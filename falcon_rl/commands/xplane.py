@@ -18,7 +18,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ..airframe import DEFAULT_AIRFRAME
+from ..defaults import DEFAULT_AIRFRAME
 from ._common import (
     UsageError,
     bounded_float,

@@ -7,7 +7,7 @@ from dataclasses import fields, replace
 
 from torchrl.envs import Compose, EnvBase, TransformedEnv
 
-from ..airframe import DEFAULT_AIRFRAME
+from ..defaults import DEFAULT_AIRFRAME, DEFAULT_BACKEND
 from ..transforms.presets import robustness_transforms
 from .fixed_wing import FixedWingEnv, FixedWingEnvConfig
 from .tasks import task_spec
@@ -23,13 +23,13 @@ def unknown_options(task: str, unknown: list[str], env_fields: set[str], task_fi
                      f"task options: {sorted(task_fields)}")
 
 
-def make_env(task: str, airframe: str = DEFAULT_AIRFRAME, num_envs: int = 1, backend: str = "warp",
+def make_env(task: str, airframe: str = DEFAULT_AIRFRAME, num_envs: int = 1, backend: str = DEFAULT_BACKEND,
              device: str = "cpu", seed: int | None = None, *, sensors: object = None,
              obs_delay_ms: object = None, action_delay_ms: object = None, randomize: object = None,
              normalize: bool = False, **options) -> EnvBase:
     """Build a :class:`FixedWingEnv` for ``task`` (a registered task, see ``task_spec``) on ``airframe``.
 
-    ``backend``: "warp" (the default, the fastest) or "torch" (the differentiable reference).
+    ``backend``: one of ``defaults.BATCH_BACKENDS``; the default (``DEFAULT_BACKEND``) is the fastest.
     ``seed``: None draws fresh entropy (two unseeded envs differ); an int makes the env and its
     transforms reproducible (``env.set_seed`` / ``reset(seed=)`` reseed them all).
 

@@ -37,22 +37,24 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import TYPE_CHECKING, Any, ClassVar, NamedTuple
 
 import torch
 from tensordict import TensorDict, TensorDictBase
 from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase
 
-from ..airframe import DEFAULT_AIRFRAME, Airframe, load_airframe
+from ..airframe import Airframe, load_airframe
+from ..defaults import DEFAULT_AIRFRAME, DEFAULT_BACKEND
 from ..physics import Simulator
 from ..physics.engine import fresh_seed, make_generator
 from ..physics.params import RANDOMIZABLE_PARAMETERS
 from ..physics.switches import ModelSwitches
 from ..physics.wind import TurbulenceConfig
-from ..transforms.action_check import check_action, refuse_bad_action
+from ..transforms.action_check import refuse_bad_action
 from ..transforms.presets import nominal_height, resolve_turbulence
 from .layout import column, simulator_layout
+from .staged_step import StagedEnvStep, finite_rows
 from .tasks import TERMINATION_CODE, TERMINATION_REASONS, Task, TaskConfig, task_spec
 
 #: Fields of ``Simulator.state`` published under ("state", ...).
@@ -66,7 +68,7 @@ LEAN_KEYS: tuple[str, ...] = ("observation", "termination_reason")
 NON_FINITE = TERMINATION_CODE["non_finite"]
 
 if TYPE_CHECKING:
-    from .tasks.warp_env_step import FusedEnvStep
+    from ..physics.fused_env_step import FusedEnvStep
 
 #: Per-env ``ModelParams`` fields that ``set_physical_parameters`` may write: the rows the physics
 #: parameter table flags randomisable (``physics.params.RANDOMIZABLE_PARAMETERS``), written through
@@ -89,7 +91,7 @@ class FixedWingEnvConfig:
     num_envs: int = 1
     #: Simulator backend: "warp" (fused kernels, the fastest on CPU and GPU) or "torch" (the
     #: differentiable reference); the scipy reference runs one env, it works too.
-    backend: str = "warp"
+    backend: str = DEFAULT_BACKEND
     device: str = "cpu"
     #: Seed of every random draw of the env (episodes, turbulence); None: fresh entropy.
     seed: int | None = None
@@ -179,6 +181,8 @@ class FixedWingEnv(EnvBase):
     termination_reasons: tuple[str, ...] = TERMINATION_REASONS
 
     batch_locked = True
+    #: The termination code of a step that left the finite numbers (``TERMINATION_REASONS``).
+    non_finite_reason: ClassVar[int] = NON_FINITE
 
     def __init__(self, config: FixedWingEnvConfig | None = None, airframe: Airframe | None = None):
         config = config or FixedWingEnvConfig()
@@ -297,13 +301,11 @@ class FixedWingEnv(EnvBase):
 
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
         action = tensordict.get("action", None)
-        stepper = self.env_stepper() if self.config.lean else None
-        if stepper is not None:  # lean, one launch: the kernel wrote every output, finite and flagged
+        if self.config.lean:  # the step wrote every output, finite and flagged
             refuse_bad_action(action, self.config.num_envs, self.task.action_dim)
-            assert isinstance(action, torch.Tensor)
             # The entries are new tensors of the batch's shape and device, as the checked constructor
             # would make sure of: TorchRL's own Gym-like envs build their outputs the same way.
-            return TensorDict._new_unsafe(stepper.torchrl_outputs(action), batch_size=self.batch_size,
+            return TensorDict._new_unsafe(self.stepper().torchrl_outputs(action), batch_size=self.batch_size,
                                           device=self.device)
         step = self.step_tensors(action)
         out = self._output(step.observation, step.state, step.reason, step.truncated.unsqueeze(-1),
@@ -318,19 +320,16 @@ class FixedWingEnv(EnvBase):
         it returns are finite (zeroed in "non_finite" rows), the state is the simulator's as it is.
         ``with_state=False`` lets a task with a fused step skip building the state (``state`` is then
         None, and the finiteness check reads the simulator's buffers instead). On the warp backend
-        with a fused task step the whole step is one launch (``tasks.warp_env_step``); ``copy=False``
+        with a fused task step the whole step is one engine call (``Engine.fuse``); ``copy=False``
         then returns its buffers, which the next step overwrites."""
-        stepper = self.env_stepper()
-        if stepper is None:
-            return self._step_glued(action, with_state)
+        stepper = self.stepper()
         refuse_bad_action(action, self.config.num_envs, self.task.action_dim)
-        assert isinstance(action, torch.Tensor)
-        observation, reward, reason, truncated, non_finite = stepper(action)
-        state = None
-        if copy or (with_state and not self.config.lean):
+        observation, reward, reason, truncated, non_finite = stepper(action, with_state)
+        state = stepper.state
+        if stepper.state is None and (copy or (with_state and not self.config.lean)):
             observation, reward, reason = observation.clone(), reward.clone(), reason.clone()
             truncated, non_finite = truncated.clone(), non_finite.clone()
-        if with_state and not self.config.lean:  # the derived state is checked too, as on the other paths
+        if with_state and not self.config.lean and state is None:  # the derived state is checked too
             state, derived = self.sim.state_and_derived()
             extra = ~finite_rows(derived)  # the kernel checked the rest
             non_finite |= extra
@@ -340,60 +339,32 @@ class FixedWingEnv(EnvBase):
             reward.masked_fill_(extra & ~torch.isfinite(reward), 0.0)
         return StepTensors(observation, reward, reason, truncated, non_finite, state)
 
+    def stepper(self) -> FusedEnvStep | StagedEnvStep:
+        """The env's step: the engine's one-call step (:meth:`env_stepper`) where it applies, else the
+        same step as stages (``staged_step.StagedEnvStep``); both are called alike and give the same
+        outputs."""
+        if "_stepper" not in self.__dict__:
+            self.__dict__["_stepper"] = self.env_stepper() or StagedEnvStep(self)
+        return self.__dict__["_stepper"]
+
     def env_stepper(self) -> FusedEnvStep | None:
-        """The one-launch env step (``tasks.warp_env_step.FusedEnvStep``) when it applies: the warp
-        backend, ``fused`` on, a task with a fused step whose ``command`` is the base one; None
-        otherwise (the step then runs the engine, the task and the checks one after the other)."""
+        """The engine's one-call env step (``Engine.fuse``) when it applies: ``fused`` on, a task with a
+        fused step (``Task.fused_stepper``) whose ``command`` is the base one, and an engine that fuses
+        (the warp engine: one launch); None otherwise (the step then runs the engine, the task and the
+        checks one after the other)."""
         if "_env_step" not in self.__dict__:
             task = self.task
-            fused = (self.config.fused and self.sim.backend == "warp" and type(task).command is Task.command)
+            fused = self.config.fused and type(task).command is Task.command
             task_step = task.fused_stepper() if fused else None
-            if task_step is not None:
-                from .tasks.warp_env_step import ENV_STEP_KERNELS, FusedEnvStep
-
-                if task_step.kernel_func not in ENV_STEP_KERNELS:
-                    task_step = None
-            self.__dict__["_env_step"] = None if task_step is None else FusedEnvStep(self, task_step)
+            self.__dict__["_env_step"] = None if task_step is None else self.sim.engine.fuse(task_step, self)
         return self.__dict__["_env_step"]
 
     def __getstate__(self) -> dict[str, Any]:
         """The plain state: the one-launch step's binding is made again after unpickling."""
         state = self.__dict__.copy()
         state.pop("_env_step", None)
+        state.pop("_stepper", None)
         return state
-
-    def _step_glued(self, action: object, with_state: bool) -> StepTensors:
-        """:meth:`step_tensors` as separate stages: the action check, the engine's step, the task's
-        (fused or torch) step, the non-finite guard and the counters."""
-        n = self.config.num_envs
-        action, nan_action = check_action(action, n, self.task.action_dim, self.sim.dtype, self.device)
-        command = self.task.command(action)
-        self.sim.step(command, substeps=self.config.decimation)
-        fused = self.task.fused_step(action) if self.config.fused else None
-        if fused is None:
-            state = self.sim.state
-            observation, reward, reason = self.task.step(state, action)
-            finite = _finite_step_rows(state, observation, reward)
-        else:
-            observation, reward, reason = fused
-            state = self.sim.state if with_state and not self.config.lean else None
-            finite = (_finite_step_rows(state, observation, reward) if state is not None
-                      else self._finite_buffers(observation, reward))
-        self.step_count += 1
-        truncated = self.step_count >= self.max_episode_steps
-        non_finite = nan_action | ~finite
-        reason = torch.where(non_finite, NON_FINITE, reason)
-        observation = observation.masked_fill(non_finite[:, None] & ~torch.isfinite(observation), 0.0)
-        reward = reward.masked_fill(non_finite & ~torch.isfinite(reward), 0.0)
-        return StepTensors(observation, reward, reason, truncated & (reason == 0), non_finite, state)
-
-    def _finite_buffers(self, observation: torch.Tensor, reward: torch.Tensor) -> torch.Tensor:
-        """[N] bool: the simulator's integrated state, gusts and clock, the observation [N, D] and the
-        reward [N] are finite (the check without a state TensorDict)."""
-        sim, n = self.sim, self.config.num_envs
-        parts = [sim.x, sim.gust_velocity_body, sim.gust_rate_body, sim.time.reshape(n, 1), observation,
-                 reward.reshape(n, 1).to(observation.dtype)]
-        return finite_rows(torch.cat(parts, -1))
 
     @staticmethod
     def _zero_non_finite(out: TensorDictBase, rows: torch.Tensor) -> TensorDictBase:
@@ -541,18 +512,3 @@ class FixedWingEnv(EnvBase):
         if mask.numel() != n:
             raise ValueError(f"mask must have {n} entries, got shape {list(mask.shape)}")
         return mask.reshape(n).to(self.device, torch.bool)
-
-
-def finite_rows(values: torch.Tensor) -> torch.Tensor:
-    """[N] bool: every number of the row of ``values`` [N, K] (floats) is finite. Computed as
-    ``sum(v - v) == 0``: v - v is exactly 0 for a finite v and NaN for a NaN or an infinity, and a NaN
-    makes the sum NaN (no overflow can occur); on the CPU ~10x faster than ``isfinite(v).all(-1)``."""
-    return (values - values).sum(-1) == 0
-
-
-def _finite_step_rows(state: TensorDictBase, observation: torch.Tensor, reward: torch.Tensor) -> torch.Tensor:
-    """[N] bool: every float of the row's state (integrated and derived), observation and reward is
-    finite."""
-    n = reward.shape[0]
-    floats = [value.reshape(n, -1) for value in state.values() if value.is_floating_point()]
-    return finite_rows(torch.cat([*floats, observation.reshape(n, -1), reward.reshape(n, 1)], -1))

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 
 from tqdm import tqdm
 
+from ..defaults import DEFAULT_BACKEND
 from ..envs import FixedWingEnv, task_spec
 from .protocols import ProtocolResult
 
@@ -70,7 +71,7 @@ def _mean_over_cases(summary: dict[str, float], key: str) -> float:
 
 def run_ablation(task: str, airframe: str, controller: str,
                  factory: Callable[[FixedWingEnv], object], episodes: int = 20, seed: int = 0,
-                 backend: str = "warp", device: str = "cpu", episode_seconds: float | None = None,
+                 backend: str = DEFAULT_BACKEND, device: str = "cpu", episode_seconds: float | None = None,
                  arms: tuple[tuple[str, dict[str, object]], ...] = ABLATIONS) -> AblationResult:
     """Fly the task's protocol (episodes of ``episode_seconds``, None: the protocol's own) on the full
     model and on each arm; see the module docstring."""

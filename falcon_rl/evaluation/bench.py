@@ -22,7 +22,8 @@ from typing import Any
 
 import torch
 
-from ..airframe import DEFAULT_AIRFRAME
+from ..defaults import BATCH_BACKENDS, DEFAULT_AIRFRAME
+from ..physics.backends import runs_batches
 from ..physics.simulator import Simulator
 
 JSBSIM_MODEL = "c172p"
@@ -57,8 +58,9 @@ class BenchCase:
 
 @dataclass
 class BenchConfig:
-    """What to time. ``backends`` in torch | torch-compile | warp | scipy (``torch-compile`` is the
-    torch backend stepping through ``torch.compile``); ``baseline`` None or "jsbsim";
+    """What to time. ``backends``: registered backends, and ``<backend>-compile`` for a backend stepping
+    through ``torch.compile`` (one whose engine takes the ``compile`` option); ``baseline`` None or
+    "jsbsim";
     ``warp_cpu_threads`` None (one per core) or the threads of a warp batch on the CPU."""
 
     backends: list[str]
@@ -117,15 +119,26 @@ def step_contents(sim: Simulator) -> str:
             f"quaternion renormalisation and actuator saturation; airframe {sim.airframe.name}")
 
 
+#: The suffix of a case that steps its backend through ``torch.compile`` (``<backend>-compile``).
+COMPILED_SUFFIX = "-compile"
+
+
+def compiled_variant(case: str) -> tuple[str, bool]:
+    """(backend, compiled) of a bench case name: ``"<backend>-compile"`` -> (backend, True)."""
+    if case.endswith(COMPILED_SUFFIX):
+        return case[: -len(COMPILED_SUFFIX)], True
+    return case, False
+
+
 def time_simulator(cfg: BenchConfig, backend: str, num_envs: int) -> tuple[BenchCase, str]:
     """Time raw ``Simulator.step``; returns the case and the step description."""
     case = BenchCase("simulator", backend, cfg.device, num_envs, cfg.steps, cfg.trials)
-    compiled = backend == "torch-compile"
-    sim = Simulator(cfg.airframe, num_envs=num_envs, backend="torch" if compiled else backend,
-                    device=cfg.device, dt=cfg.dt, integrator=cfg.integrator, check_inputs=False,
-                    warp_cpu_threads=cfg.warp_cpu_threads, compile=compiled)
+    engine, compiled = compiled_variant(backend)
+    sim = Simulator(cfg.airframe, num_envs=num_envs, backend=engine, device=cfg.device, dt=cfg.dt,
+                    integrator=cfg.integrator, check_inputs=False, warp_cpu_threads=cfg.warp_cpu_threads,
+                    compile=compiled)
     command = sim.command.clone()
-    steps = cfg.steps if backend != "scipy" else max(1, cfg.steps // 10)
+    steps = cfg.steps if runs_batches(engine) else max(1, cfg.steps // 10)  # a one-env reference: slow
     case.steps = steps
     blocks, warmup_s = _time_blocks(lambda: sim.step(command), steps, cfg.trials, max(cfg.warmup, 2),
                                     cfg.device)
@@ -217,8 +230,9 @@ def run_bench(cfg: BenchConfig) -> dict[str, Any]:
     """Run every case of ``cfg`` and return a JSON-able document (cases in ``cfg.cases``)."""
     from tqdm import tqdm
 
-    plan = [(b, n) for b in cfg.backends for n in cfg.env_counts if not (b == "scipy" and n != 1)]
-    skipped = [f"{b}:{n}" for b in cfg.backends for n in cfg.env_counts if b == "scipy" and n != 1]
+    batches = {b: runs_batches(compiled_variant(b)[0]) for b in cfg.backends}
+    plan = [(b, n) for b in cfg.backends for n in cfg.env_counts if batches[b] or n == 1]
+    skipped = [f"{b}:{n}" for b in cfg.backends for n in cfg.env_counts if not (batches[b] or n == 1)]
     contents = ""
     if cfg.baseline == "jsbsim":
         cfg.cases.append(time_jsbsim(cfg, "before"))
@@ -227,7 +241,7 @@ def run_bench(cfg: BenchConfig) -> dict[str, Any]:
         bar.set_postfix_str(f"{backend} x {n}")
         case, contents = time_simulator(cfg, backend, n)
         cfg.cases.append(case)
-        if cfg.include_env and backend in ("torch", "warp"):
+        if cfg.include_env and backend in BATCH_BACKENDS:
             env_case = time_env(cfg, backend, n)
             if env_case is not None:
                 cfg.cases.append(env_case)

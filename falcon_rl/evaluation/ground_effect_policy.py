@@ -37,6 +37,7 @@ from tensordict.nn import TensorDictModuleBase
 from tqdm import tqdm
 
 from ..airframe import load_airframe
+from ..defaults import BATCH_BACKENDS, DEFAULT_BACKEND
 from ..envs import FixedWingEnv, make_env
 from ..envs.tasks.base import TERMINATION_REASONS
 from ..physics import state as S
@@ -193,8 +194,8 @@ def _check_arguments(airframe: str, controller: str, bands: tuple[float, ...], e
         raise ValueError(f"seconds must be finite and > 0, got {seconds!r}")
     if not math.isfinite(settle_seconds) or not 0 <= settle_seconds < seconds:
         raise ValueError(f"settle_seconds must lie in [0, seconds={seconds}), got {settle_seconds!r}")
-    if backend not in ("warp", "torch"):
-        raise ValueError(f"backend must be 'warp' or 'torch', got {backend!r}")
+    if backend not in BATCH_BACKENDS:
+        raise ValueError(f"backend must be one of {', '.join(BATCH_BACKENDS)}, got {backend!r}")
     if not (ground_effect is True or (isinstance(ground_effect, str) and ground_effect in _GE_ON_MODES)):
         raise ValueError(f"ground_effect (the 'on' arm) must be True, 'induced' or 'paper', "
                          f"got {ground_effect!r}")
@@ -272,7 +273,7 @@ def _fly_arm(airframe: str, factory: ControllerFactory, height: float, ground_ef
 def ground_effect_policy_column(airframe: str, controller: str, factory: ControllerFactory | None = None,
                                 bands_h_over_b: tuple[float, ...] = PAPER_H_OVER_B, episodes: int = 4,
                                 seconds: float = 30.0, settle_seconds: float = 10.0, seed: int = 0,
-                                backend: str = "warp", device: str = "cpu", *,
+                                backend: str = DEFAULT_BACKEND, device: str = "cpu", *,
                                 ground_effect: bool | str = True, height_reference: str = "cg",
                                 tolerance_fraction: float = HOLD_TOLERANCE_FRACTION,
                                 tolerance_m: float = HOLD_TOLERANCE_M, compare_trim: bool = True,

@@ -2,7 +2,7 @@
 
 Each registered task names its protocol in its ``TaskSpec``; all share one signature,
 
-    protocol(airframe, controller, factory, episodes=..., seed=0, backend="warp", device="cpu",
+    protocol(airframe, controller, factory, episodes=..., seed=0, backend=DEFAULT_BACKEND, device="cpu",
              episode_seconds=None, **env_options) -> ProtocolResult
 
 with ``factory(env) -> policy`` and ``episode_seconds`` None for the protocol's own horizon.
@@ -35,6 +35,7 @@ from tensordict.nn import TensorDictModuleBase
 from tqdm import tqdm
 
 from ..airframe import load_airframe
+from ..defaults import DEFAULT_BACKEND
 from ..envs import FixedWingEnv, make_env
 from ..envs.layout import flat_scalars
 from ..envs.maneuvers import MANEUVERS
@@ -125,7 +126,8 @@ def in_units(summary: dict[str, float]) -> dict[str, float]:
 
 
 def tracking_protocol(task: str, metrics: EpisodeMetrics, traces: tuple, airframe: str, controller: str,
-                      factory: ControllerFactory, episodes: int = 20, seed: int = 0, backend: str = "warp",
+                      factory: ControllerFactory, episodes: int = 20, seed: int = 0,
+                      backend: str = DEFAULT_BACKEND,
                       device: str = "cpu", episode_seconds: float | None = None,
                       **env_options) -> ProtocolResult:
     """Fly ``episodes`` envs of ``task`` for one horizon (the task's own unless ``episode_seconds``) and
@@ -147,7 +149,7 @@ def tracking_protocol(task: str, metrics: EpisodeMetrics, traces: tuple, airfram
 
 
 def altitude_protocol(airframe: str, controller: str, factory: ControllerFactory, episodes: int = 20,
-                      seed: int = 0, backend: str = "warp", device: str = "cpu",
+                      seed: int = 0, backend: str = DEFAULT_BACKEND, device: str = "cpu",
                       episode_seconds: float | None = None, **env_options) -> ProtocolResult:
     """Fly ``episodes`` altitude episodes (``ALTITUDE_SECONDS`` unless ``episode_seconds``) in parallel
     and score them (true state)."""
@@ -168,7 +170,7 @@ def altitude_protocol(airframe: str, controller: str, factory: ControllerFactory
 
 
 def attitude_protocol(airframe: str, controller: str, factory: ControllerFactory, episodes: int = 1,
-                      seed: int = 0, backend: str = "warp", device: str = "cpu",
+                      seed: int = 0, backend: str = DEFAULT_BACKEND, device: str = "cpu",
                       episode_seconds: float | None = None, maneuvers: tuple[str, ...] = MANEUVERS,
                       **env_options) -> ProtocolResult:
     """Fly each maneuver stream (``episodes`` envs each; its first ``episode_seconds`` when given) and
@@ -210,7 +212,7 @@ def climb_descend_seconds(airframe: str, **env_options) -> float:
 
 
 def climb_descend_protocol(airframe: str, controller: str, factory: ControllerFactory, episodes: int = 20,
-                           seed: int = 0, backend: str = "warp", device: str = "cpu",
+                           seed: int = 0, backend: str = DEFAULT_BACKEND, device: str = "cpu",
                            episode_seconds: float | None = None, **env_options) -> ProtocolResult:
     """Fly ``episodes`` climb/descend episodes (:func:`climb_descend_seconds` unless ``episode_seconds``):
     climb-rate tracking on the ramp, then level-off at the commanded altitude."""
@@ -220,7 +222,7 @@ def climb_descend_protocol(airframe: str, controller: str, factory: ControllerFa
 
 
 def path_following_protocol(airframe: str, controller: str, factory: ControllerFactory, episodes: int = 20,
-                            seed: int = 0, backend: str = "warp", device: str = "cpu",
+                            seed: int = 0, backend: str = DEFAULT_BACKEND, device: str = "cpu",
                             episode_seconds: float | None = None, **env_options) -> ProtocolResult:
     """Fly ``episodes`` path-following episodes (the task's horizon unless ``episode_seconds``): survival,
     completion, capture time, cross-track / course / altitude RMSE after the intercept."""
@@ -230,7 +232,7 @@ def path_following_protocol(airframe: str, controller: str, factory: ControllerF
 
 
 def trajectory_protocol(airframe: str, controller: str, factory: ControllerFactory, episodes: int = 20,
-                        seed: int = 0, backend: str = "warp", device: str = "cpu",
+                        seed: int = 0, backend: str = DEFAULT_BACKEND, device: str = "cpu",
                         episode_seconds: float | None = None, **env_options) -> ProtocolResult:
     """Fly ``episodes`` trajectory episodes (the task's horizon unless ``episode_seconds``): survival and
     3D / horizontal / vertical position RMSE and time within 10 m after the intercept."""

@@ -39,6 +39,7 @@ from tensordict import TensorDictBase
 from tensordict.nn import TensorDictModuleBase
 from tqdm import tqdm
 
+from ..defaults import DEFAULT_BACKEND
 from ..envs import FixedWingEnv, make_env
 from ..envs.layout import flat_scalars
 from ..envs.maneuvers import MANEUVERS
@@ -242,7 +243,7 @@ def _fly(env: FixedWingEnv, policy: TensorDictModuleBase, steps: int) -> TensorD
 
 def run_cell(airframe: str, factory: ControllerFactory, family: str, level: str,
              maneuvers: Sequence[str] = MANEUVERS, episodes: int = 1, seconds: float | None = None,
-             seed: int = 0, backend: str = "warp", device: str = "cpu",
+             seed: int = 0, backend: str = DEFAULT_BACKEND, device: str = "cpu",
              keep_rollouts: bool = False) -> tuple[RobustnessCell, list[TensorDictBase]]:
     """Fly one (family, level) cell: ``episodes`` envs on each stream of ``maneuvers`` (the whole
     stream, or its first ``seconds`` s; "random": ``seconds`` s, default ``RANDOM_STREAM_SECONDS``),
@@ -271,7 +272,8 @@ def run_cell(airframe: str, factory: ControllerFactory, family: str, level: str,
 def robustness_grid(airframe: str, controller: str, factory: ControllerFactory | None = None,
                     families: Sequence[str] = FAMILIES, levels: Sequence[str] = GRID, episodes: int = 1,
                     seconds: float | None = None, maneuvers: Sequence[str] = MANEUVERS, seed: int = 0,
-                    backend: str = "warp", device: str = "cpu", progress: bool = True) -> RobustnessResult:
+                    backend: str = DEFAULT_BACKEND, device: str = "cpu", progress: bool = True
+                    ) -> RobustnessResult:
     """Fly ``controller`` on ``airframe``'s attitude task through the robustness grid: one cell per
     (family, level) of ``families`` x ``levels`` (see the module docstring for the units).
 

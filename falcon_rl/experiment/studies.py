@@ -27,6 +27,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ..defaults import DEFAULT_BACKEND
 from ..envs.maneuvers import MANEUVERS
 from .cells import Cell, register_cell_function
 
@@ -171,7 +172,7 @@ def _train(cell: Cell, folder: Path) -> str:
 
     module = algorithm(cell.controller)
     config = module.make_config(cell.task, airframe=cell.airframe, seed=cell.seed,
-                                backend=cell.param_dict.get("backend", "warp"), out=str(folder),
+                                backend=cell.param_dict.get("backend", DEFAULT_BACKEND), out=str(folder),
                                 final_eval_episodes=0, resume="auto")
     return str(module.train(config)["policy"])
 
@@ -254,7 +255,7 @@ def altitude_cell(cell: Cell) -> Any:
     params = cell.param_dict
     result = altitude_protocol(cell.airframe, cell.controller.upper(), factory(cell, source),
                                episodes=int(params["episodes"]), seed=cell.seed + 1000 * cell.draw,
-                               backend=params.get("backend", "warp"))
+                               backend=params.get("backend", DEFAULT_BACKEND))
     return _protocol_document(result, altitude_traces(result))
 
 
@@ -271,7 +272,7 @@ def maneuvers_cell(cell: Cell) -> Any:
     seconds = params.get("episode_seconds")
     result = attitude_protocol(cell.airframe, cell.controller.upper(), factory(cell, source),
                                episodes=int(params["episodes"]), seed=cell.seed + 1000 * cell.draw,
-                               backend=params.get("backend", "warp"),
+                               backend=params.get("backend", DEFAULT_BACKEND),
                                episode_seconds=None if seconds is None or math.isnan(seconds) else seconds)
     return _protocol_document(result, maneuver_traces(result))
 
@@ -291,7 +292,7 @@ def ground_effect_cell(cell: Cell) -> dict[str, Any]:
     result = ground_effect_policy_column(cell.airframe, cell.controller.upper(), factory(cell, source),
                                          episodes=int(params["episodes"]), seconds=seconds,
                                          settle_seconds=seconds / 3.0, seed=cell.seed + 1000 * cell.draw,
-                                         backend=params.get("backend", "warp"))
+                                         backend=params.get("backend", DEFAULT_BACKEND))
     summary: dict[str, float] = {}
     for row in result.rows:
         band = f"{row.h_over_b:g}"
@@ -318,7 +319,7 @@ def robustness_cell(cell: Cell) -> dict[str, Any]:
     result = robustness_grid(cell.airframe, cell.controller.upper(), factory(cell, source),
                              episodes=int(params["episodes"]), seconds=float(params["episode_seconds"]),
                              maneuvers=tuple(params["maneuvers"]), seed=cell.seed + 1000 * cell.draw,
-                             backend=params.get("backend", "warp"))
+                             backend=params.get("backend", DEFAULT_BACKEND))
     rows = result.to_rows()
     summary = {f"{row['family']}/{row['level']}/{metric}": row[metric] for row in rows
                for metric in ("survival", "bank_rmse_deg", "climb_rate_rmse_mps", "airspeed_rmse_mps")}

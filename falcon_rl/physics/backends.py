@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import importlib
 
+from ..defaults import BATCH_BACKENDS, DEFAULT_BACKEND
 from .engine import Engine
 
 #: Registered backends: name -> "module:Class" (a bare module name is relative to ``falcon_rl.physics``;
@@ -34,3 +35,18 @@ def engine_class(backend: str) -> type[Engine]:
     if not (isinstance(entry, type) and issubclass(entry, Engine)):
         raise TypeError(f"backend {backend!r} is registered as {entry!r}, not an Engine subclass")
     return entry
+
+
+def runs_batches(backend: str) -> bool:
+    """Whether ``backend`` steps more than one env at a time (its engine places a batch of two)."""
+    import torch
+
+    try:
+        engine_class(backend).placement(2, torch.device("cpu"), torch.float32)
+    except ValueError:
+        return False
+    return True
+
+
+if DEFAULT_BACKEND not in BATCH_BACKENDS or not set(BATCH_BACKENDS) <= set(ENGINES):
+    raise ImportError("falcon_rl.defaults names a backend that is not registered here")

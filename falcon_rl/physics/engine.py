@@ -6,6 +6,13 @@
     engine.step(command, substeps, stop_at_ground)   # command [N, 4] in [-1, 1], held over the sub-steps
     engine.derived()                           # [N, DERIVED_WIDTH], columns of derived.DERIVED_FIELDS
 
+Capabilities (an engine that has them says so; code above the physics asks, never names a backend):
+
+    engine.RUNS_TASK_KERNELS                   # runs a task's Warp kernels over its buffers
+    engine.kernel_slices, engine.kernel_device # where: (offset, count) slices of the batch, Warp device
+    engine.replayer(launches)                  # a call that replays recorded launches as its own
+    engine.fuse(task_step, env)                # the env's whole step as one call (or None)
+
 Buffers (allocated by :class:`Engine`, updated in place, never replaced):
 
     x                   [N, S]  integrated state (``state.StateLayout``)
@@ -111,6 +118,9 @@ class Engine(ABC):
 
     #: Backend-specific option names this engine accepts in ``EngineSetup.options``.
     OPTIONS: ClassVar[tuple[str, ...]] = ()
+    #: Whether this engine runs a task's Warp kernels over its buffers (``kernel_slices``,
+    #: ``kernel_device``, ``replayer``): a task's fused step (``Task.fused_stepper``) binds to it.
+    RUNS_TASK_KERNELS: ClassVar[bool] = False
 
     @classmethod
     def placement(cls, num_envs: int, device: torch.device, dtype: torch.dtype
@@ -232,6 +242,30 @@ class Engine(ABC):
     @abstractmethod
     def derived(self) -> torch.Tensor:
         """[N, DERIVED_WIDTH] derived state of the current x (``derived.DERIVED_FIELDS``)."""
+
+    # ------------------------------------------------------------------ capabilities
+    @property
+    def kernel_slices(self) -> list[tuple[int, int]]:
+        """(offset, count) slices of the batch that a kernel over it is launched in (one per CPU thread
+        of an engine that splits its batch; the whole batch by default)."""
+        return [(0, self.num_envs)]
+
+    @property
+    def kernel_device(self) -> str:
+        """The Warp device of this engine's buffers (engines that run task kernels)."""
+        raise NotImplementedError(f"the {type(self).__name__} runs no task kernels")
+
+    def replayer(self, launches: list[Any], threads: int | None = None) -> Callable[[], None]:
+        """A call that replays recorded Warp ``launches`` (one per :attr:`kernel_slices`) as the engine
+        replays its own (engines that run task kernels)."""
+        raise NotImplementedError(f"the {type(self).__name__} runs no task kernels")
+
+    def fuse(self, task_step: Any, env: Any) -> Any | None:
+        """The whole step of ``env`` (``FixedWingEnv``: the action check, the task's command, the physics
+        sub-steps, the task's fused step ``task_step``, the non-finite guard, the counters and the done
+        flags) as one call of this engine (``fused_env_step.FusedEnvStep``), or None where the engine
+        has no such step: the env then runs those stages one after the other."""
+        return None
 
     def reseed(self, seed: int) -> None:
         """Reseed this engine's generator and the turbulence noise streams."""

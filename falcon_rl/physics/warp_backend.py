@@ -106,6 +106,7 @@ class WarpEngine(Engine):
     :data:`MIN_ENVS_PER_THREAD` envs); ignored on CUDA."""
 
     OPTIONS = ("cpu_threads",)
+    RUNS_TASK_KERNELS = True
 
     #: What the engine binds to its buffers (Warp module, kernels, arrays, recorded launches, stream):
     #: left out of a pickle and bound again from the plain state on load.
@@ -331,6 +332,20 @@ class WarpEngine(Engine):
             self.turbulence.reset(mask)
         self._reset_replays[derive]()
         return self._evaluation if derive else None
+
+    @property
+    def kernel_slices(self) -> list[tuple[int, int]]:
+        return self.slices
+
+    @property
+    def kernel_device(self) -> str:
+        return self.device
+
+    def fuse(self, task_step: Any, env: Any) -> Any | None:
+        """The env's whole step in one launch per CPU slice (:class:`~.fused_env_step.FusedEnvStep`)."""
+        from .fused_env_step import FusedEnvStep
+
+        return FusedEnvStep(env, task_step)
 
     def split(self, substeps: int) -> tuple[int, list[tuple[int, int]]]:
         """(threads, CPU slices) for launches of ``substeps`` physics steps each (the option

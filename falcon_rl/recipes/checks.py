@@ -12,6 +12,7 @@ import types
 import typing
 from dataclasses import fields
 
+from ..defaults import BATCH_BACKENDS
 from ..envs import task_spec
 from ..policies.format import ACTIVATIONS, MAX_LAYERS, MAX_PARAMETERS, MAX_WIDTH
 from .logging import LOGGERS
@@ -33,7 +34,7 @@ NON_NEGATIVE = ("entropy_coeff", "critic_coeff", "exploration_noise", "policy_no
 UNIT_INTERVAL = ("gamma", "gae_lambda", "tau")
 LARGE = ("frames", "checkpoint_every", "eval_every", "init_random_frames")
 CHOICES: dict[str, tuple] = {"activation": tuple(ACTIVATIONS), "critic_activation": tuple(ACTIVATIONS),
-                             "backend": ("torch", "warp"), "logger": LOGGERS, "resume": (False, True, "auto")}
+                             "backend": BATCH_BACKENDS, "logger": LOGGERS, "resume": (False, True, "auto")}
 
 
 def _finite(value: object) -> bool:

@@ -26,7 +26,7 @@ import torch
 from torch import nn
 from torchrl.envs import ExcludeTransform, RewardSum, TransformedEnv
 
-from ..airframe import DEFAULT_AIRFRAME
+from ..defaults import DEFAULT_AIRFRAME, DEFAULT_BACKEND
 from ..envs import make_env, task_spec
 from ..envs.tasks import TERMINATION_CODE
 from ..policies.format import ACTIVATIONS
@@ -46,8 +46,8 @@ class TrainConfig:
     airframe: str = DEFAULT_AIRFRAME
     #: Parallel envs in the training batch.
     num_envs: int = 512
-    #: Simulator backend: "warp" is the fastest on CPU at these batch sizes.
-    backend: str = "warp"
+    #: Simulator backend (``defaults.BATCH_BACKENDS``; the default is the fastest at these batch sizes).
+    backend: str = DEFAULT_BACKEND
     device: str = "cpu"
     seed: int = 0
     #: Total env steps to train for.

@@ -11,7 +11,7 @@ later once ``register_gym_envs()`` runs again), each with a ``vector_entry_point
 simulator, :class:`falcon_rl.envs.gym.vector.FalconVectorEnv`) and ``max_episode_steps`` = the task's
 default horizon (episode_seconds / control period of the default configs). Keyword arguments are
 those of :func:`falcon_rl.envs.make_env` (airframe, backend, device, seed and task or env options);
-the backend defaults to "warp".
+the backend defaults to ``defaults.DEFAULT_BACKEND``.
 
 Horizon: the env truncates at its own horizon (episode_seconds / (dt x decimation)) and
 ``gymnasium.make`` adds ``TimeLimit(max_episode_steps)``; both count from the same reset, so with the
@@ -43,7 +43,7 @@ from gymnasium import spaces
 from tensordict import TensorDict, TensorDictBase
 from torchrl.envs import EnvBase
 
-from ...airframe import DEFAULT_AIRFRAME
+from ...defaults import DEFAULT_AIRFRAME, DEFAULT_BACKEND
 from ...physics.engine import fresh_seed
 from ...transforms.action_check import refuse_bad_action
 from ..tasks.registry import TASK_SPECS, SpecView, task_spec
@@ -51,9 +51,6 @@ from .render import RENDER_MODES, GymRenderer, available_render_modes, check_ren
 
 #: Task name -> Gymnasium id (a live, read-only view of the task registry).
 GYM_IDS: SpecView[str] = SpecView(lambda spec: spec.gym_id)
-
-#: Simulator backend of the Gymnasium and Stable-Baselines3 envs unless one is given.
-DEFAULT_BACKEND: str = "warp"
 
 #: Entry points registered for every task.
 ENTRY_POINT: str = "falcon_rl.envs.gym:CoreAircraftEnv"

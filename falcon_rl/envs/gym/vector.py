@@ -41,7 +41,7 @@ import torch
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from ...airframe import DEFAULT_AIRFRAME
+from ...defaults import DEFAULT_AIRFRAME
 from ...transforms import flight_env
 from . import DEFAULT_BACKEND, action_tensor, as_action, build_env, reseed, single_spaces, task_arrays
 from .core import TensorCore, Transition, tensor_core_env

@@ -317,7 +317,7 @@ class Task(ABC):
         simulator's buffers instead of a state TensorDict, updates every buffer :meth:`step` updates,
         exactly as :meth:`step` would (parity tested), and returns (observation [N, D], reward [N],
         termination reason [N] long), buffers that the next call overwrites. On the warp backend the env
-        runs it inside its own one-launch step (``warp_env_step``) when nothing else overrides it."""
+        runs it inside the engine's one-call step (``Engine.fuse``) when nothing else overrides it."""
         return None
 
     def overrides(self, owner: type, methods: tuple[str, ...]) -> bool:

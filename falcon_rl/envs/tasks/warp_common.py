@@ -1,18 +1,16 @@
-"""What the tasks' fused Warp steps share (``Task.fused_step`` on the warp backend).
+"""What the tasks' Warp kernels share (``Task.fused_stepper`` on an engine that runs task kernels).
 
-- :class:`SimulatorViews` and :func:`flight_state`: the derived state a task reads (position, NED
-  velocity, Euler angles, body rates, clamped surfaces, mean throttle, airspeed, alpha, beta, height,
-  lower wing-tip height) computed for one env from the state row, wind and gusts with the same
-  ``@wp.func`` twins and expressions as the engine's evaluation kernel (no aerodynamics, no propulsion).
+- The derived state a task reads (``physics.task_kernels.flight_state``) and the kernels around a task's
+  functions (``physics.task_kernels.task_kernels``) come with the engine contract.
 - Twins of the torch functions of ``base`` with torch's semantics (``torch.clamp`` keeps a NaN,
   ``torch.sign`` is 0 at 0, ``torch.remainder``): :func:`clamp_keep_nan`, :func:`torch_sign`,
   :func:`taper_wp`, :func:`gaussian_wp`, :func:`airspeed_margin_penalty_wp`, :func:`wrap_angle_wp`.
 - :func:`termination_code`: the reasons of ``Task.termination_checks`` in the priority order of
   ``base.TERMINATION_REASONS`` (ground contact, alpha stall, speed stall, lost).
 - :class:`FusedStep`: binds zero-copy Warp views of the simulator's and the task's tensors, records
-  the task kernel's launch (and its start kernel's) per CPU slice of the engine, replays it with
-  ``sim.engine.run`` and binds again when a simulator tensor it reads has moved; :func:`fused_stepper`
-  is the shared ``fused_stepper``.
+  the task kernel's launch (and its start kernel's) per slice of the engine (``Engine.kernel_slices``),
+  replays them with the engine's ``replayer`` and binds again when a simulator tensor it reads has
+  moved; :func:`fused_stepper` is the shared ``fused_stepper``.
 
 A task kernel has the signature ``(sim: SimulatorViews, buf: <Buffers>, c: <Constants>, observation
 [N, D], reward [N], reason [N] int64, offset: int)`` and handles env i = offset + tid. A task's start
@@ -23,23 +21,14 @@ kernel (``FusedStep.start_kernel``: ``after_reset`` and ``observe`` after the ph
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import torch
 import warp as wp
 
-from ...physics.dynamics import air_data_wp
-from ...physics.rotations import quaternion_to_euler_wp, rotation_matrix_wp
-from ...physics.state import (
-    ANGULAR_RATE_START,
-    DOWN_INDEX,
-    QUATERNION_START,
-    SURFACE_POSITION_START,
-    THROTTLE_START,
-    VELOCITY_START,
-)
-from ...physics.warp_backend import warp_device
+from ...physics.task_kernels import FlightState, simulator_views
 from .base import TERMINATION_CODE
 
 if TYPE_CHECKING:
@@ -49,90 +38,11 @@ GROUND_CONTACT = wp.constant(TERMINATION_CODE["ground_contact"])
 ALPHA_STALL = wp.constant(TERMINATION_CODE["alpha_stall"])
 SPEED_STALL = wp.constant(TERMINATION_CODE["speed_stall"])
 LOST = wp.constant(TERMINATION_CODE["lost"])
-POSITION_START = wp.constant(DOWN_INDEX - 2)
 PI = wp.constant(math.pi)
 TWO_PI = wp.constant(2.0 * math.pi)
 
 #: Outputs of a fused step: observation [N, D], reward [N], termination reason [N] long.
 StepOutputs = tuple[torch.Tensor, torch.Tensor, torch.Tensor]
-
-
-@wp.struct
-class SimulatorViews:
-    """The simulator's buffers the task reads: state [N, S], air motion [N] vec3, geometry [N]."""
-
-    x: wp.array2d(dtype=wp.float32)
-    wind_ned: wp.array(dtype=wp.vec3)
-    gust_velocity_body: wp.array(dtype=wp.vec3)
-    span: wp.array(dtype=wp.float32)
-    wing_quarter_chord: wp.array(dtype=wp.vec3)
-    surface_min: wp.array(dtype=wp.vec3)
-    surface_max: wp.array(dtype=wp.vec3)
-
-
-@wp.struct
-class FlightState:
-    """The fields of ``Simulator.state`` a task reads, for one env (SI units, rad)."""
-
-    position_ned: wp.vec3
-    velocity_ned: wp.vec3
-    euler: wp.vec3  # roll, pitch, yaw
-    angular_rate: wp.vec3  # p, q, r
-    surfaces: wp.vec3  # clamped to the actuator limits
-    surface_min: wp.vec3
-    surface_max: wp.vec3
-    throttle: float  # mean over the motors
-    airspeed: float
-    alpha: float
-    beta: float
-    height: float
-    lowest_tip: float  # height of the lower wing tip
-
-
-@wp.func
-def state_vec3(x: wp.array2d(dtype=wp.float32), i: int, start: int) -> wp.vec3:
-    """x[i, start:start + 3]."""
-    return wp.vec3(x[i, start], x[i, start + 1], x[i, start + 2])
-
-
-@wp.func
-def flight_state(sim: SimulatorViews, i: int) -> FlightState:
-    """The derived state of env i (the expressions of ``evaluate_wp`` and ``evaluate_kernel``)."""
-    x = sim.x
-    q = wp.vec4(x[i, QUATERNION_START], x[i, QUATERNION_START + 1], x[i, QUATERNION_START + 2],
-                x[i, QUATERNION_START + 3])
-    rot = rotation_matrix_wp(q)
-    vel = state_vec3(x, i, VELOCITY_START)
-    air = air_data_wp(vel - wp.transpose(rot) * sim.wind_ned[i] - sim.gust_velocity_body[i])
-    f = FlightState()
-    f.position_ned = state_vec3(x, i, POSITION_START)
-    f.velocity_ned = rot * vel
-    f.euler = quaternion_to_euler_wp(q)
-    f.angular_rate = state_vec3(x, i, ANGULAR_RATE_START)
-    lo = sim.surface_min[i]
-    hi = sim.surface_max[i]
-    f.surfaces = wp.min(wp.max(state_vec3(x, i, SURFACE_POSITION_START), lo), hi)
-    f.surface_min = lo
-    f.surface_max = hi
-    motors = x.shape[1] - THROTTLE_START
-    throttle = wp.float32(0.0)
-    for k in range(motors):
-        throttle += x[i, THROTTLE_START + k]
-    f.throttle = throttle / float(motors)
-    f.airspeed = air[0]
-    f.alpha = air[1]
-    f.beta = air[2]
-    f.height = -x[i, DOWN_INDEX]
-    wing_height = f.height - wp.dot(wp.vec3(rot[2, 0], rot[2, 1], rot[2, 2]), sim.wing_quarter_chord[i])
-    f.lowest_tip = wing_height - 0.5 * sim.span[i] * wp.abs(rot[2, 1])
-    return f
-
-
-@wp.func
-def normalised_surface(f: FlightState, k: int) -> float:
-    """Surface k on the command's [-1, 1] scale (twin of ``base.normalised_surfaces``)."""
-    lo = f.surface_min[k]
-    return 2.0 * (f.surfaces[k] - lo) / (f.surface_max[k] - lo) - 1.0
 
 
 @wp.func
@@ -261,8 +171,11 @@ class FusedStep:
     :attr:`start_kernel` the start of episodes (``Task.start_episodes``) is one launch too."""
 
     kernel: ClassVar[Any]
-    #: The task step's ``@wp.func`` that :attr:`kernel` wraps (the env-step kernel calls it too).
+    #: The task step's ``@wp.func`` that :attr:`kernel` wraps (the engine's fused env step calls it too,
+    #: ``Engine.fuse``), and the Warp structs of its ``buf`` and ``c`` arguments.
     kernel_func: ClassVar[Any]
+    buffers: ClassVar[type]
+    constants: ClassVar[type]
     #: A kernel ``(sim, buf, c, observation [N, D], mask [N] bool, offset)`` that starts the episodes of
     #: the rows in ``mask`` after their physics reset (the task's ``after_reset``) and writes every
     #: env's observation (its ``observe``); None: the task starts episodes in torch.
@@ -275,7 +188,6 @@ class FusedStep:
         self.reward = torch.zeros(n, device=device, dtype=torch.float32)
         self.reason = torch.zeros(n, device=device, dtype=torch.long)
         self.action = torch.zeros(n, task.action_dim, device=device, dtype=torch.float32)
-        self.device = warp_device(device)
         #: [N] bool: the rows :meth:`start` starts (staged for its launch), and its observation [N, D] (a
         #: buffer of its own: a caller may still read the step's after a reset).
         self.start_mask = torch.zeros(n, device=device, dtype=torch.bool)
@@ -314,26 +226,24 @@ class FusedStep:
 
     def bind(self) -> None:
         """Bind zero-copy views of the simulator's and the task's tensors and record the launches."""
-        views = SimulatorViews()
-        for name, tensor in zip(("x", "wind_ned", "gust_velocity_body", "span", "wing_quarter_chord",
-                                 "surface_min", "surface_max"), self._simulator_tensors(), strict=True):
-            setattr(views, name, wp.from_torch(tensor) if name == "x" else warp_view(tensor))
+        views = simulator_views(*self._simulator_tensors())
         outputs = [wp.from_torch(self.observation), wp.from_torch(self.reward), warp_view(self.reason)]
         task_inputs = self.task_inputs()
         self._inputs = [views, *task_inputs, *outputs]
-        self._launches = [wp.launch(self.kernel, dim=count, inputs=[*self._inputs, offset],
-                                    device=self.device, record_cmd=True)
-                          for offset, count in self.task.sim.engine.slices]
         # The engine replays them as its own: on torch's current CUDA stream, the CPU slices on its
         # threads, one CPU slice as a captured graph.
         engine = self.task.sim.engine
+        self._launches = [wp.launch(self.kernel, dim=count, inputs=[*self._inputs, offset],
+                                    device=engine.kernel_device, record_cmd=True)
+                          for offset, count in engine.kernel_slices]
         self._replay = engine.replayer(self._launches)
         if self.start_kernel is not None:
             start_inputs = [views, *task_inputs, wp.from_torch(self.start_observation),
                             wp.from_torch(self.start_mask)]
             self._start_replay = engine.replayer([
-                wp.launch(self.start_kernel, dim=count, inputs=[*start_inputs, offset], device=self.device,
-                          record_cmd=True) for offset, count in engine.slices])
+                wp.launch(self.start_kernel, dim=count, inputs=[*start_inputs, offset],
+                          device=engine.kernel_device, record_cmd=True)
+                for offset, count in engine.kernel_slices])
         self._key = self.binding_key()
 
     def draw(self) -> None:
@@ -364,13 +274,27 @@ class FusedStep:
         return self.observation, self.reward, self.reason
 
 
+#: Task classes already warned that their step runs unfused (:func:`fused_stepper` warns once per class).
+_WARNED_UNFUSED: set[type] = set()
+
+
 def fused_stepper(task: Task, owner: type, methods: tuple[str, ...], factory: type[FusedStep]
                   ) -> FusedStep | None:
-    """The shared body of a task's ``fused_stepper``: None when a subclass of ``owner`` overrides one of
-    the fused ``methods`` (it then falls back to ``step``), else the task's ``factory`` step, built on
-    the first call and kept in ``task._fused`` (its ``owner`` set: ``Task.fused_starter`` checks
-    ``after_reset`` against it)."""
-    if task.overrides(owner, methods):
+    """The shared body of a task's ``fused_stepper``: None when the simulator's engine runs no task
+    kernels, or when a subclass of ``owner`` overrides one of the fused ``methods`` (it then steps in
+    torch, ``Task.step``, and a RuntimeWarning says so once per class: its kernels twin ``owner``'s
+    methods, not the subclass's), else the task's ``factory`` step, built on the first call and kept in
+    ``task._fused`` (its ``owner`` set: ``Task.fused_starter`` checks ``after_reset`` against it)."""
+    if not task.sim.engine.RUNS_TASK_KERNELS:
+        return None
+    overridden = [name for name in methods if getattr(type(task), name) is not getattr(owner, name)]
+    if overridden:
+        if type(task) not in _WARNED_UNFUSED:
+            _WARNED_UNFUSED.add(type(task))
+            warnings.warn(f"{type(task).__name__} overrides {', '.join(overridden)} of {owner.__name__}, "
+                          f"whose fused Warp step twins {owner.__name__}'s methods: it steps in torch "
+                          f"instead (slower); give it a FusedStep of its own (Task.fused_stepper) to fuse it",
+                          RuntimeWarning, stacklevel=3)
         return None
     fused = getattr(task, "_fused", None)
     if fused is None:

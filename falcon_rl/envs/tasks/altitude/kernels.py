@@ -28,23 +28,25 @@ import warp as wp
 
 from ....constants import DEG, G0
 from ....physics._warp import forward_only
-from ..warp_common import (
+from ....physics.task_kernels import (
     FlightState,
-    FusedStep,
     SimulatorViews,
+    flight_state,
+    normalised_surface,
+    task_kernels,
+)
+from ..warp_common import (
+    FusedStep,
     clamp_keep_nan,
     clamp_max_keep_nan,
     clamp_min_keep_nan,
     clip,
     fill_struct,
-    flight_state,
     gaussian_wp,
-    normalised_surface,
     taper_wp,
     termination_code,
     torch_sign,
 )
-from ..warp_task_kernels import task_kernels
 
 forward_only(__name__)
 
@@ -287,6 +289,8 @@ class FusedAltitudeStep(FusedStep):
 
     kernel = altitude_step_kernel
     kernel_func = altitude_step
+    buffers = AltitudeBuffers
+    constants = AltitudeConstants
     start_kernel = altitude_start_kernel
     task: Task
 

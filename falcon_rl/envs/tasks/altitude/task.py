@@ -263,7 +263,7 @@ class AltitudeTask(Task):
         when a subclass overrides a method of the step): (observation [N, 11], reward [N], reason [N]
         long), buffers overwritten by the next call. With ``target_sequence`` the random shift is drawn
         from the task's generator in torch before the launch, exactly as :meth:`step` draws it."""
-        if self.sim.backend != "warp":
+        if not self.sim.engine.RUNS_TASK_KERNELS:
             return None
         from ..warp_common import fused_stepper
         from .kernels import FusedAltitudeStep

@@ -23,19 +23,16 @@ import warp as wp
 
 from ....constants import DEG
 from ....physics._warp import forward_only
+from ....physics.task_kernels import FlightState, SimulatorViews, flight_state, task_kernels
 from ..warp_common import (
-    FlightState,
     FusedStep,
-    SimulatorViews,
     airspeed_margin_penalty_wp,
     clamp_keep_nan,
     clip,
     fill_struct,
-    flight_state,
     gaussian_wp,
     termination_code,
 )
-from ..warp_task_kernels import task_kernels
 
 forward_only(__name__)
 
@@ -238,6 +235,8 @@ class FusedAttitudeStep(FusedStep):
 
     kernel = attitude_step_kernel
     kernel_func = attitude_step
+    buffers = AttitudeBuffers
+    constants = AttitudeConstants
     start_kernel = attitude_start_kernel
     task: Task
 

@@ -178,7 +178,8 @@ class AttitudeTask(Task):
         when a subclass overrides a method of the step or the stream is not a ``RandomCommandStream``):
         (observation [N, 15], reward [N], reason [N] long), buffers overwritten by the next call."""
         stream = self.random_stream
-        if self.sim.backend != "warp" or (stream is not None and type(stream) is not RandomCommandStream):
+        custom_stream = stream is not None and type(stream) is not RandomCommandStream
+        if not self.sim.engine.RUNS_TASK_KERNELS or custom_stream:
             return None
         from ..warp_common import fused_stepper
         from .kernels import FusedAttitudeStep

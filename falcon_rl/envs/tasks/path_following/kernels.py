@@ -20,19 +20,16 @@ import warp as wp
 
 from ....constants import DEG
 from ....physics._warp import forward_only
+from ....physics.task_kernels import FlightState, SimulatorViews, flight_state, task_kernels
 from ..warp_common import (
-    FlightState,
     FusedStep,
-    SimulatorViews,
     airspeed_margin_penalty_wp,
     clip,
     fill_struct,
-    flight_state,
     gaussian_wp,
     termination_code,
     wrap_angle_wp,
 )
-from ..warp_task_kernels import task_kernels
 
 forward_only(__name__)
 
@@ -167,6 +164,8 @@ class FusedPathFollowingStep(FusedStep):
 
     kernel = path_following_step_kernel
     kernel_func = path_following_step
+    buffers = PathFollowingBuffers
+    constants = PathFollowingConstants
     start_kernel = path_following_start_kernel
     task: Task
 

@@ -148,7 +148,7 @@ class PathFollowingTask(Task):
         """:meth:`step` as one Warp kernel on the warp backend (``path_following.kernels``; None elsewhere,
         or when a subclass overrides a method of the step): (observation [N, 17], reward [N], reason [N]
         long), buffers overwritten by the next call."""
-        if self.sim.backend != "warp":
+        if not self.sim.engine.RUNS_TASK_KERNELS:
             return None
         from ..warp_common import fused_stepper
         from .kernels import FusedPathFollowingStep

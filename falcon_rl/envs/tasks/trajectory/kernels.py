@@ -20,18 +20,15 @@ import warp as wp
 
 from ....constants import DEG
 from ....physics._warp import forward_only
+from ....physics.task_kernels import FlightState, SimulatorViews, flight_state, task_kernels
 from ..warp_common import (
-    FlightState,
     FusedStep,
-    SimulatorViews,
     airspeed_margin_penalty_wp,
     clip,
     fill_struct,
-    flight_state,
     gaussian_wp,
     termination_code,
 )
-from ..warp_task_kernels import task_kernels
 
 forward_only(__name__)
 
@@ -185,6 +182,8 @@ class FusedTrajectoryStep(FusedStep):
 
     kernel = trajectory_step_kernel
     kernel_func = trajectory_step
+    buffers = TrajectoryBuffers
+    constants = TrajectoryConstants
     start_kernel = trajectory_start_kernel
     task: Task
 

@@ -175,7 +175,7 @@ class TrajectoryTask(Task):
         """:meth:`step` as one Warp kernel on the warp backend (``trajectory.kernels``; None elsewhere, or
         when a subclass overrides a method of the step): (observation [N, 17], reward [N], reason [N]
         long), buffers overwritten by the next call."""
-        if self.sim.backend != "warp":
+        if not self.sim.engine.RUNS_TASK_KERNELS:
             return None
         from ..warp_common import fused_stepper
         from .kernels import FusedTrajectoryStep

@@ -1,5 +1,6 @@
-"""The whole env step in one Warp launch (per CPU slice) on the warp backend: ``FixedWingEnv`` with a task
-whose step is fused (``Task.fused_env_step``).
+"""The whole env step in one Warp launch (per CPU slice): the warp engine's ``fuse`` (the engine
+contract's ``Engine.fuse``), for an env (``FixedWingEnv``) whose task has a fused Warp step
+(``Task.fused_stepper``).
 
 For env i, :func:`env_step_kernel`'s kernels do in order what the env's torch glue around the two launches
 of the engine and the task did, with the same float32 arithmetic:
@@ -17,14 +18,14 @@ of the engine and the task did, with the same float32 arithmetic:
 6. the episode step count and the done flags: terminated (a reason), truncated (at
    ``max_episode_steps``, not when terminated) and done (either).
 
-The kernels of the built-in tasks are made at import, each in a Warp module of its own (the physics
-and the task's step inlined), so that a launch compiles only the kernel of the task it steps: a cold
-CUDA compile of one takes minutes (NVRTC, sm_90: 301 s for altitude's on a 2-core AMD EPYC host).
-:class:`FusedEnvStep` binds the views (the engine's buffers, the task's, the env's counters), records
-the launches and replays them; per step it copies the action into its buffer (a cast for other float
-dtypes), draws the task's random numbers, bumps the turbulence stream counter when on, and launches:
-nothing else runs in Python or torch. On CUDA, :meth:`FusedEnvStep.cuda_graph` captures those (draws,
-counter, launch) in a CUDA graph for loops that replay it.
+The kernel of a task's step is made on its first use (:func:`env_step_kernel_for`), in a Warp module of
+its own (the physics and the task's step inlined), so that a launch compiles only the kernel of the task
+it steps: a cold CUDA compile of one takes minutes (NVRTC, sm_90: 301 s for altitude's on a 2-core AMD
+EPYC host). :class:`FusedEnvStep` binds the views (the engine's buffers, the task's, the env's counters),
+records the launches and replays them; per step it copies the action into its buffer (a cast for other
+float dtypes), draws the task's random numbers, bumps the turbulence stream counter when on, and
+launches: nothing else runs in Python or torch. On CUDA, :meth:`FusedEnvStep.cuda_graph` captures those
+(draws, counter, launch) in a CUDA graph for loops that replay it.
 
 No ``from __future__ import annotations`` here: Warp reads the kernel factory's annotations, which name
 the task's struct types through the closure.
@@ -37,26 +38,22 @@ import numpy as np
 import torch
 import warp as wp
 
-from ...physics._warp import KERNEL_OPTIONS
-from ...physics.params import WarpParams
-from ...physics.warp_kernels import (
+from ._warp import KERNEL_OPTIONS
+from .params import WarpParams
+from .task_kernels import SimulatorViews
+from .warp_kernels import (
     EngineViews,
     StepSettings,
     advance_env,
     flush_denormals_begin,
     flush_denormals_end,
 )
-from .altitude.kernels import AltitudeBuffers, AltitudeConstants, altitude_step
-from .attitude.kernels import AttitudeBuffers, AttitudeConstants, attitude_step
-from .base import TERMINATION_CODE
-from .path_following.kernels import PathFollowingBuffers, PathFollowingConstants, path_following_step
-from .trajectory.kernels import TrajectoryBuffers, TrajectoryConstants, trajectory_step
-from .warp_common import FusedStep, SimulatorViews
 
 
 class SteppedEnv(Protocol):
     """What :class:`FusedEnvStep` reads of the env it steps (``FixedWingEnv``): its config (num_envs,
-    decimation), device, simulator, task, episode step counter [N] long and horizon."""
+    decimation), device, simulator (its engine and crash state), task (action channels, command buffer),
+    episode step counter [N] long, horizon and the termination code of a non-finite step."""
 
     config: Any
     device: torch.device
@@ -64,8 +61,26 @@ class SteppedEnv(Protocol):
     task: Any
     step_count: torch.Tensor
     max_episode_steps: int
+    non_finite_reason: int
 
-NON_FINITE = wp.constant(TERMINATION_CODE["non_finite"])
+
+class TaskStep(Protocol):
+    """A task's fused Warp step as the env step kernel calls it (``envs.tasks.warp_common.FusedStep``):
+    its ``@wp.func`` (``kernel_func``) and the structs of its buffers and constants, its bound inputs and
+    output buffers (observation [N, D], reward [N], reason [N] long, the action [N, A] it reads)."""
+
+    kernel_func: Any
+    buffers: type
+    constants: type
+    action: torch.Tensor
+    observation: torch.Tensor
+    reward: torch.Tensor
+    reason: torch.Tensor
+
+    def ensure_bound(self) -> None: ...
+    def kernel_inputs(self) -> list[Any]: ...
+    def draw(self) -> None: ...
+    def generators(self) -> tuple[torch.Generator, ...]: ...
 
 
 @wp.struct
@@ -83,6 +98,7 @@ class EnvViews:
     done: wp.array(dtype=wp.bool)  # [N] out: terminated or truncated
     non_finite: wp.array(dtype=wp.bool)  # [N] out: terminated with reason "non_finite"
     max_episode_steps: wp.int64
+    non_finite_reason: wp.int64  # the termination code of a non-finite step
 
 
 @wp.func
@@ -128,7 +144,7 @@ def finish_step(v: EnvViews, e: EngineViews, observation: wp.array2d(dtype=wp.fl
             finite = False
     bad = nan_action or not finite
     if bad:
-        reason[i] = wp.int64(NON_FINITE)
+        reason[i] = v.non_finite_reason
         for k in range(observation.shape[1]):
             if not wp.isfinite(observation[i, k]):
                 observation[i, k] = 0.0
@@ -166,29 +182,32 @@ def env_step_kernel(task_step: Any, buffers: type, constants: type) -> Any:
     return wp.kernel(env_step, module="unique", module_options=dict(KERNEL_OPTIONS))
 
 
-#: Env-step kernels of the built-in tasks' fused steps, by the task step's ``@wp.func``.
-ENV_STEP_KERNELS: dict[Any, Any] = {
-    func: env_step_kernel(func, buffers, constants) for func, buffers, constants in (
-        (altitude_step, AltitudeBuffers, AltitudeConstants),
-        (attitude_step, AttitudeBuffers, AttitudeConstants),
-        (path_following_step, PathFollowingBuffers, PathFollowingConstants),
-        (trajectory_step, TrajectoryBuffers, TrajectoryConstants),
-    )}
+#: Env-step kernels made so far, by the task step's ``@wp.func`` (each made on its first use).
+_ENV_STEP_KERNELS: dict[Any, Any] = {}
+
+
+def env_step_kernel_for(task_step: TaskStep) -> Any:
+    """The env-step kernel around ``task_step``'s function (:func:`env_step_kernel`, made once per
+    function): a built-in task's and a user's alike."""
+    func = task_step.kernel_func
+    if func not in _ENV_STEP_KERNELS:
+        _ENV_STEP_KERNELS[func] = env_step_kernel(func, task_step.buffers, task_step.constants)
+    return _ENV_STEP_KERNELS[func]
 
 
 class FusedEnvStep:
     """The recorded launches of an env's whole step (one per CPU slice of the engine) with its buffers:
     the action [N, A] as given, the done flags (``flags`` [3, N, 1] bool: terminated, truncated, done;
     ``truncated`` [N] is a view of its middle row) and ``non_finite`` [N] bool; the observation, reward
-    and reason buffers are the task's fused step's (:class:`~.warp_common.FusedStep`). Every buffer is
+    and reason buffers are the task's fused step's (:class:`TaskStep`). Every buffer is
     overwritten by the next call. It binds again when the engine binds again or a tensor it reads moved.
 
     ``numpy_views()`` gives NumPy views of the action and output buffers on the CPU, for callers that
     step with NumPy (write the action into the view, :meth:`launch`, read the outputs)."""
 
-    def __init__(self, env: SteppedEnv, task_step: FusedStep):
+    def __init__(self, env: SteppedEnv, task_step: TaskStep):
         self.env, self.task_step = env, task_step
-        self.kernel = ENV_STEP_KERNELS[task_step.kernel_func]
+        self.kernel = env_step_kernel_for(task_step)
         n, device = env.config.num_envs, env.device
         task = env.task
         self.raw_action = torch.zeros(n, task.action_dim, device=device, dtype=torch.float32)
@@ -231,6 +250,7 @@ class FusedEnvStep:
         v.done = wp.from_torch(self.flags[2].view(n), dtype=wp.bool)
         v.non_finite = wp.from_torch(self.non_finite, dtype=wp.bool)
         v.max_episode_steps = int(env.max_episode_steps)
+        v.non_finite_reason = int(env.non_finite_reason)
         inputs = [views, params, settings, int(env.config.decimation), int(env.sim.stop_at_ground), v,
                   *self.task_step.kernel_inputs()]
         self._threads, slices = engine.split(int(env.config.decimation))  # the sub-steps are work too
@@ -284,9 +304,14 @@ class FusedEnvStep:
 
         return replay
 
-    def __call__(self, action: torch.Tensor) -> tuple[torch.Tensor, ...]:
+    #: The state of the last step as a TensorDict: None, the kernel builds none (the env's staged step,
+    #: ``envs.staged_step.StagedEnvStep``, is called alike and may have one).
+    state = None
+
+    def __call__(self, action: torch.Tensor, with_state: bool = True) -> tuple[torch.Tensor, ...]:
         """(observation [N, D], reward [N], reason [N] long, truncated [N], non_finite [N]) of the step
-        with ``action`` [N, A] (a real float tensor of that shape, checked by the caller)."""
+        with ``action`` [N, A] (a real float tensor of that shape, checked by the caller);
+        ``with_state`` is the staged step's and ignored here (no state is built)."""
         self.raw_action.copy_(action)
         self.launch()
         t = self.task_step
@@ -315,4 +340,4 @@ class FusedEnvStep:
         return {name: tensor.numpy() for name, tensor in tensors.items()}
 
 
-__all__ = ["ENV_STEP_KERNELS", "EnvViews", "FusedEnvStep", "env_step_kernel"]
+__all__ = ["EnvViews", "FusedEnvStep", "SteppedEnv", "TaskStep", "env_step_kernel", "env_step_kernel_for"]

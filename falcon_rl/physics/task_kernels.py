@@ -1,0 +1,161 @@
+"""What a task's Warp kernels read of an engine, and the kernels made around a task's functions.
+
+Part of the engine contract for engines that run task kernels (``Engine.RUNS_TASK_KERNELS``): a task
+writes its step as ``@wp.func`` functions of one env (``i``) and this module gives them
+
+- :class:`SimulatorViews` (the engine's state [N, S], air motion [N] vec3 and geometry [N] as zero-copy
+  views, bound by :func:`simulator_views`) and :func:`flight_state`, the derived state a task reads
+  (position, NED velocity, Euler angles, body rates, clamped surfaces, mean throttle, airspeed, alpha,
+  beta, height, lower wing-tip height) computed for one env with the same ``@wp.func`` twins and
+  expressions as the engine's evaluation kernel (no aerodynamics, no propulsion);
+- :func:`task_kernels`: the step and start kernels around a task's functions, in the task's own Warp
+  module, each env i = offset + tid (``offset``: the first env of a slice, ``Engine.kernel_slices``) with
+  denormals flushed as the physics' kernels do.
+
+No ``from __future__ import annotations`` here: Warp reads the kernels' annotations, which name the
+task's struct types through the closure.
+"""
+
+from typing import Any
+
+import torch
+import warp as wp
+
+from .dynamics import air_data_wp
+from .rotations import quaternion_to_euler_wp, rotation_matrix_wp
+from .state import (
+    ANGULAR_RATE_START,
+    DOWN_INDEX,
+    QUATERNION_START,
+    SURFACE_POSITION_START,
+    THROTTLE_START,
+    VELOCITY_START,
+)
+from .warp_kernels import flush_denormals_begin, flush_denormals_end
+
+POSITION_START = wp.constant(DOWN_INDEX - 2)
+_VECTOR = {2: wp.vec2, 3: wp.vec3, 4: wp.vec4}
+
+
+@wp.struct
+class SimulatorViews:
+    """The simulator's buffers the task reads: state [N, S], air motion [N] vec3, geometry [N]."""
+
+    x: wp.array2d(dtype=wp.float32)
+    wind_ned: wp.array(dtype=wp.vec3)
+    gust_velocity_body: wp.array(dtype=wp.vec3)
+    span: wp.array(dtype=wp.float32)
+    wing_quarter_chord: wp.array(dtype=wp.vec3)
+    surface_min: wp.array(dtype=wp.vec3)
+    surface_max: wp.array(dtype=wp.vec3)
+
+
+@wp.struct
+class FlightState:
+    """The fields of ``Simulator.state`` a task reads, for one env (SI units, rad)."""
+
+    position_ned: wp.vec3
+    velocity_ned: wp.vec3
+    euler: wp.vec3  # roll, pitch, yaw
+    angular_rate: wp.vec3  # p, q, r
+    surfaces: wp.vec3  # clamped to the actuator limits
+    surface_min: wp.vec3
+    surface_max: wp.vec3
+    throttle: float  # mean over the motors
+    airspeed: float
+    alpha: float
+    beta: float
+    height: float
+    lowest_tip: float  # height of the lower wing tip
+
+
+@wp.func
+def state_vec3(x: wp.array2d(dtype=wp.float32), i: int, start: int) -> wp.vec3:
+    """x[i, start:start + 3]."""
+    return wp.vec3(x[i, start], x[i, start + 1], x[i, start + 2])
+
+
+@wp.func
+def flight_state(sim: SimulatorViews, i: int) -> FlightState:
+    """The derived state of env i (the expressions of ``evaluate_wp`` and ``evaluate_kernel``)."""
+    x = sim.x
+    q = wp.vec4(x[i, QUATERNION_START], x[i, QUATERNION_START + 1], x[i, QUATERNION_START + 2],
+                x[i, QUATERNION_START + 3])
+    rot = rotation_matrix_wp(q)
+    vel = state_vec3(x, i, VELOCITY_START)
+    air = air_data_wp(vel - wp.transpose(rot) * sim.wind_ned[i] - sim.gust_velocity_body[i])
+    f = FlightState()
+    f.position_ned = state_vec3(x, i, POSITION_START)
+    f.velocity_ned = rot * vel
+    f.euler = quaternion_to_euler_wp(q)
+    f.angular_rate = state_vec3(x, i, ANGULAR_RATE_START)
+    lo = sim.surface_min[i]
+    hi = sim.surface_max[i]
+    f.surfaces = wp.min(wp.max(state_vec3(x, i, SURFACE_POSITION_START), lo), hi)
+    f.surface_min = lo
+    f.surface_max = hi
+    motors = x.shape[1] - THROTTLE_START
+    throttle = wp.float32(0.0)
+    for k in range(motors):
+        throttle += x[i, THROTTLE_START + k]
+    f.throttle = throttle / float(motors)
+    f.airspeed = air[0]
+    f.alpha = air[1]
+    f.beta = air[2]
+    f.height = -x[i, DOWN_INDEX]
+    wing_height = f.height - wp.dot(wp.vec3(rot[2, 0], rot[2, 1], rot[2, 2]), sim.wing_quarter_chord[i])
+    f.lowest_tip = wing_height - 0.5 * sim.span[i] * wp.abs(rot[2, 1])
+    return f
+
+
+@wp.func
+def normalised_surface(f: FlightState, k: int) -> float:
+    """Surface k on the command's [-1, 1] scale (twin of ``base.normalised_surfaces``)."""
+    lo = f.surface_min[k]
+    return 2.0 * (f.surfaces[k] - lo) / (f.surface_max[k] - lo) - 1.0
+
+
+def simulator_views(x: torch.Tensor, wind_ned: torch.Tensor, gust_velocity_body: torch.Tensor,
+                    span: torch.Tensor, wing_quarter_chord: torch.Tensor, surface_min: torch.Tensor,
+                    surface_max: torch.Tensor) -> Any:
+    """A :class:`SimulatorViews` of an engine's float32 tensors: x [N, S], wind and gusts [N, 3], span
+    [N], wing quarter chord, surface limits [N, 3] (zero-copy: the views follow in-place writes)."""
+    views = SimulatorViews()
+    views.x = wp.from_torch(x)
+    for name, tensor in (("wind_ned", wind_ned), ("gust_velocity_body", gust_velocity_body),
+                         ("wing_quarter_chord", wing_quarter_chord), ("surface_min", surface_min),
+                         ("surface_max", surface_max)):
+        setattr(views, name, wp.from_torch(tensor, dtype=_VECTOR[tensor.shape[1]]))
+    views.span = wp.from_torch(span)
+    return views
+
+
+def task_kernels(name: str, step: Any, start: Any, buffers: type, constants: type, module: str
+                 ) -> tuple[Any, Any]:
+    """(``<name>_step_kernel``, ``<name>_start_kernel``) in the Warp module named ``module`` (the task's
+    own) of a task's
+    ``@wp.func`` step ``(sim, buf: buffers, c: constants, observation [N, D], reward [N], reason [N]
+    int64, i)`` and start ``(sim, buf, c, observation [N, D], mask [N] bool, i)``; the kernels take the
+    same arguments with ``offset`` in place of ``i``."""
+
+    def step_kernel(sim: SimulatorViews, buf: buffers, c: constants,  # type: ignore[valid-type]
+                    observation: wp.array2d(dtype=wp.float32), reward: wp.array(dtype=wp.float32),
+                    reason: wp.array(dtype=wp.int64), offset: int):
+        i = wp.tid() + offset
+        saved = flush_denormals_begin()
+        step(sim, buf, c, observation, reward, reason, i)
+        flush_denormals_end(saved)
+
+    def start_kernel(sim: SimulatorViews, buf: buffers, c: constants,  # type: ignore[valid-type]
+                     observation: wp.array2d(dtype=wp.float32), mask: wp.array(dtype=wp.bool), offset: int):
+        i = wp.tid() + offset
+        saved = flush_denormals_begin()
+        start(sim, buf, c, observation, mask, i)
+        flush_denormals_end(saved)
+
+    return (wp.kernel(step_kernel, name=f"{name}_step_kernel", module=module),
+            wp.kernel(start_kernel, name=f"{name}_start_kernel", module=module))
+
+
+__all__ = ["FlightState", "SimulatorViews", "flight_state", "normalised_surface", "simulator_views",
+           "task_kernels"]
