@@ -40,7 +40,7 @@ import warp as wp
 
 from ._warp import KERNEL_OPTIONS
 from .params import WarpParams
-from .task_kernels import SimulatorViews
+from .task_kernels import SimulatorViews, TaskStep
 from .warp_kernels import (
     EngineViews,
     StepSettings,
@@ -62,25 +62,6 @@ class SteppedEnv(Protocol):
     step_count: torch.Tensor
     max_episode_steps: int
     non_finite_reason: int
-
-
-class TaskStep(Protocol):
-    """A task's fused Warp step as the env step kernel calls it (``envs.tasks.warp_common.FusedStep``):
-    its ``@wp.func`` (``kernel_func``) and the structs of its buffers and constants, its bound inputs and
-    output buffers (observation [N, D], reward [N], reason [N] long, the action [N, A] it reads)."""
-
-    kernel_func: Any
-    buffers: type
-    constants: type
-    action: torch.Tensor
-    observation: torch.Tensor
-    reward: torch.Tensor
-    reason: torch.Tensor
-
-    def ensure_bound(self) -> None: ...
-    def kernel_inputs(self) -> list[Any]: ...
-    def draw(self) -> None: ...
-    def generators(self) -> tuple[torch.Generator, ...]: ...
 
 
 @wp.struct
@@ -340,4 +321,4 @@ class FusedEnvStep:
         return {name: tensor.numpy() for name, tensor in tensors.items()}
 
 
-__all__ = ["EnvViews", "FusedEnvStep", "SteppedEnv", "TaskStep", "env_step_kernel", "env_step_kernel_for"]
+__all__ = ["EnvViews", "FusedEnvStep", "SteppedEnv", "env_step_kernel", "env_step_kernel_for"]

@@ -16,7 +16,7 @@ No ``from __future__ import annotations`` here: Warp reads the kernels' annotati
 task's struct types through the closure.
 """
 
-from typing import Any
+from typing import Any, Protocol
 
 import torch
 import warp as wp
@@ -35,6 +35,40 @@ from .warp_kernels import flush_denormals_begin, flush_denormals_end
 
 POSITION_START = wp.constant(DOWN_INDEX - 2)
 _VECTOR = {2: wp.vec2, 3: wp.vec3, 4: wp.vec4}
+
+
+class TaskStep(Protocol):
+    """A task's fused step (``envs.tasks.warp_common.FusedStep``): called with the checked action [N, A]
+    right after the physics, it returns (observation [N, D], reward [N], reason [N] long), its buffers;
+    :meth:`start` starts the episodes of a reset (given a ``start_kernel``). The engine's one-launch env
+    step (``Engine.fuse``) calls its ``@wp.func`` (``kernel_func``) inside its own kernel, with the
+    structs of its ``buf`` and ``c`` arguments (``buffers``, ``constants``) and its bound inputs.
+    ``owner`` is the task class whose methods it twins."""
+
+    owner: type
+    kernel_func: Any
+    start_kernel: Any
+    buffers: type
+    constants: type
+    action: torch.Tensor
+    observation: torch.Tensor
+    reward: torch.Tensor
+    reason: torch.Tensor
+
+    def __call__(self, action: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]: ...
+
+    def start(self, mask: torch.Tensor) -> torch.Tensor:
+        """Start the episodes of the rows in ``mask`` [N] bool after their physics reset; returns every
+        env's observation [N, D] (a buffer the next call overwrites)."""
+        ...
+
+    def ensure_bound(self) -> None: ...
+
+    def kernel_inputs(self) -> list[Any]: ...
+
+    def draw(self) -> None: ...
+
+    def generators(self) -> tuple[torch.Generator, ...]: ...
 
 
 @wp.struct
@@ -157,5 +191,5 @@ def task_kernels(name: str, step: Any, start: Any, buffers: type, constants: typ
             wp.kernel(start_kernel, name=f"{name}_start_kernel", module=module))
 
 
-__all__ = ["FlightState", "SimulatorViews", "flight_state", "normalised_surface", "simulator_views",
-           "task_kernels"]
+__all__ = ["FlightState", "SimulatorViews", "TaskStep", "flight_state", "normalised_surface",
+           "simulator_views", "task_kernels"]

@@ -29,7 +29,7 @@ from __future__ import annotations
 import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, fields
-from typing import Any, ClassVar, Protocol
+from typing import TYPE_CHECKING, ClassVar
 
 import torch
 from tensordict import TensorDictBase
@@ -38,6 +38,9 @@ from ...airframe import Airframe
 from ...physics import Simulator, trim_level
 from ...physics import state as S
 from ...physics.rotations import quaternion_to_euler
+
+if TYPE_CHECKING:
+    from ...physics.task_kernels import TaskStep
 
 #: Why an episode terminated: "termination_reason" holds the index (0: not terminated). Checked in
 #: this order, the first that applies is published.
@@ -131,23 +134,6 @@ def _is_number(value: object) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
-class FusedTaskStep(Protocol):
-    """A task's backend-fused step (e.g. ``warp_common.FusedStep``): called with the checked action
-    [N, A] right after the physics, it returns (observation [N, D], reward [N], reason [N] long).
-    ``owner`` is the task class whose methods it twins; ``start_kernel`` (None: none) makes
-    :meth:`start` available."""
-
-    owner: type
-    start_kernel: Any
-
-    def __call__(self, action: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]: ...
-
-    def start(self, mask: torch.Tensor) -> torch.Tensor:
-        """Start the episodes of the rows in ``mask`` [N] bool after their physics reset; returns every
-        env's observation [N, D] (a buffer the next call overwrites)."""
-        ...
-
-
 class Task(ABC):
     """Base of the flight tasks. N envs; A action channels; D observation entries."""
 
@@ -236,7 +222,7 @@ class Task(ABC):
         self.time[mask] = 0.0
 
     def start_episodes(self, state: TensorDictBase | None, mask: torch.Tensor,
-                       starter: FusedTaskStep | None = None) -> torch.Tensor:
+                       starter: TaskStep | None = None) -> torch.Tensor:
         """[N, D] observation (a new tensor) after the rows in ``mask`` [N] bool were reset to ``state``,
         the simulator's: :meth:`after_reset` then :meth:`observe`, or, given ``starter`` (this task's
         :meth:`fused_starter`, which the caller asked for once before the reset), the same in one
@@ -249,9 +235,9 @@ class Task(ABC):
         self.after_reset(state, mask)
         return self.observe(state)
 
-    def fused_starter(self) -> FusedTaskStep | None:
+    def fused_starter(self) -> TaskStep | None:
         """The fused step (:meth:`fused_stepper`) when it has a start kernel, the twin of
-        :meth:`after_reset` and :meth:`observe` of the class it twins (``FusedTaskStep.owner``), and this
+        :meth:`after_reset` and :meth:`observe` of the class it twins (``TaskStep.owner``), and this
         task's class does not override ``after_reset`` (``observe`` and the methods ``after_reset`` calls
         are the step's, checked by :meth:`fused_stepper`); else None: the task starts episodes in torch."""
         stepper = self.fused_stepper()
@@ -309,7 +295,7 @@ class Task(ABC):
         self.previous_action.copy_(action)
         return self.observe(state), reward, reason
 
-    def fused_stepper(self) -> FusedTaskStep | None:
+    def fused_stepper(self) -> TaskStep | None:
         """This task's backend-fused step (bound on first use, kept in ``_fused``), or None when it has
         none for the simulator's backend (the default) or a subclass overrides a method it fuses.
 
