@@ -46,7 +46,8 @@ def test_penalty_is_the_energy_rate_error_of_the_state_history():
     without, _ = rollout((0.0, 0.3), 40, weight=0.0)
     cost = (without["next", "reward"] - with_term["next", "reward"]).squeeze(-1)[:, 1:]
     expected = WEIGHT * energy_rate_error(with_term, r).abs().clamp(max=4.0)
-    torch.testing.assert_close(cost, expected.to(cost.dtype), rtol=1e-4, atol=1e-4)
+    # float32 noise: dV/dt is a difference of close airspeeds over 0.05 s (the kernel's and the history's)
+    torch.testing.assert_close(cost, expected.to(cost.dtype), rtol=1e-4, atol=3e-4)
 
 
 def test_level_trim_misses_the_ramps_energy_rate_by_the_climb_rate():

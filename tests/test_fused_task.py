@@ -165,9 +165,9 @@ def test_crafted_crashes_give_the_same_reasons(lean):
         assert not value.is_floating_point() or torch.isfinite(value).all()
 
 
-def test_fused_step_falls_back_off_warp_and_for_a_changed_step():
-    torch_env = make_env("altitude", "navion", num_envs=2, backend="torch", seed=0)
-    assert torch_env.task.fused_step(torch.zeros(2, 2)) is None
+def test_fused_step_falls_back_in_float64_and_for_a_changed_step():
+    reference = make_env("altitude", "navion", num_envs=2, backend="torch", seed=0, dtype=torch.float64)
+    assert reference.task.fused_step(torch.zeros(2, 2, dtype=torch.float64)) is None
 
     class Changed(AltitudeTask):
         def reward(self, state, action):
@@ -372,8 +372,22 @@ def test_every_registered_task_has_a_fused_warp_step():
         env = make_env(name, "navion", num_envs=2, backend="warp", seed=0)
         action = torch.zeros(2, env.task.action_dim)
         assert env.task.fused_step(action) is not None, name
-        torch_env = make_env(name, "navion", num_envs=2, backend="torch", seed=0)
-        assert torch_env.task.fused_step(action) is None, name
+        torch_env = make_env(name, "navion", num_envs=2, backend="torch", seed=0)  # the same kernel
+        assert torch_env.task.fused_step(action) is not None, name
+        reference = make_env(name, "navion", num_envs=2, backend="torch", seed=0, dtype=torch.float64)
+        assert reference.task.fused_step(action.double()) is None, name
+
+
+@pytest.mark.parametrize("task", ["altitude", "attitude", "path_following", "trajectory", "climb_descend"])
+def test_on_the_torch_engine_the_fused_step_matches_the_torch_step(task):
+    """The torch engine runs the task's Warp step after its torch physics: the same rollout as the
+    task's torch step on the same engine, auto-resets and terminations included."""
+    envs = {fused: make_env(task, "volantex_ranger", num_envs=N, backend="torch", seed=3, wind=WIND,
+                            episode_seconds=3.0, fused=fused) for fused in (False, True)}
+    assert envs[True].task.fused_stepper() is not None and envs[False].task.fused_stepper() is not None
+    rollouts = {fused: roll(env, 90, hold_seconds=1.0) for fused, env in envs.items()}
+    assert int(rollouts[True]["next", "done"].sum()) > 0
+    assert_same_rollout(rollouts[False], rollouts[True])
 
 
 def test_other_tasks_fall_back_for_a_changed_step_or_stream():

@@ -61,10 +61,15 @@ def test_a_user_task_runs_in_the_engines_one_launch_step_and_matches_its_torch_s
     torch.testing.assert_close(c["next", "reward"], rollout(heavy_plain)["next", "reward"], **TOL)
 
 
-def test_a_torch_backend_env_steps_the_task_in_torch(user_task) -> None:
-    env = make_env("user_hold", "navion", num_envs=2, backend="torch", seed=0)
-    assert env.env_stepper() is None and env.task.fused_stepper() is None
-    assert rollout(env, 5)["next", "reward"].isfinite().all()
+def test_the_torch_engine_runs_the_same_kernel_and_float64_the_torch_step(user_task) -> None:
+    env = make_env("user_hold", "navion", num_envs=6, backend="torch", seed=2, episode_seconds=1.0)
+    plain = make_env("user_hold", "navion", num_envs=6, backend="torch", seed=2, episode_seconds=1.0,
+                     fused=False)
+    assert env.env_stepper() is None and env.task.fused_stepper() is not None  # torch physics, Warp task
+    torch.testing.assert_close(rollout(env)["next", "reward"], rollout(plain)["next", "reward"], **TOL)
+    reference = make_env("user_hold", "navion", num_envs=2, backend="torch", seed=0, dtype=torch.float64)
+    assert reference.task.fused_stepper() is None
+    assert rollout(reference, 5)["next", "reward"].isfinite().all()
 
 
 class SharperAltitude(AltitudeTask):

@@ -55,10 +55,10 @@ pytestmark = pytest.mark.skipif(not warp_available(), reason="warp-lang is not i
 if warp_available():
     import warp as wp
 
+    from falcon_rl.physics._warp import warp_device
     from falcon_rl.physics.actuators import actuator_derivative_wp
     from falcon_rl.physics.rotations import rotation_matrix_wp
     from falcon_rl.physics.state import StateVec
-    from falcon_rl.physics.warp_backend import warp_device
     from falcon_rl.physics.warp_kernels import derivative_kernel
 
     @wp.kernel

@@ -164,6 +164,8 @@ class FixedWingEnv(EnvBase):
     max_episode_steps                  int         truncation once episode_step reaches it; recipes
     set_episode_step(values, mask)     [N] or int  start counters mid-episode; stagger_episodes
     stagger_episodes(generator)        -           counters uniform in {0, ..., max - 1}; recipes
+    reward_term_means()                {float}     mean of each named reward term per env-step since the
+                                                   last call (optional member); the recipes' logs
     random_state()                     {tensors}   the env's and the simulator's generator states and
                                                    the turbulence stream counter; checkpoints
     seed_record                        (int, int)  (times seeded, last seed); the random transforms
@@ -212,6 +214,7 @@ class FixedWingEnv(EnvBase):
         self.task = spec.task(task_config, self.sim, self.generator, self.control_dt, config.ground_effect)
         self.max_episode_steps = max(1, round(self.task.episode_seconds / self.control_dt))
         self.step_count = torch.zeros(config.num_envs, dtype=torch.long, device=device)
+        self._reward_term_steps = 0  # env steps since the last reward_term_means()
         self._nominal_parameters = self.physical_parameters()
         self._seed_record: tuple[int, int] = (0, 0)
         self._set_seed(config.seed)
@@ -303,6 +306,7 @@ class FixedWingEnv(EnvBase):
         action = tensordict.get("action", None)
         if self.config.lean:  # the step wrote every output, finite and flagged
             refuse_bad_action(action, self.config.num_envs, self.task.action_dim)
+            self._reward_term_steps += 1
             # The entries are new tensors of the batch's shape and device, as the checked constructor
             # would make sure of: TorchRL's own Gym-like envs build their outputs the same way.
             return TensorDict._new_unsafe(self.stepper().torchrl_outputs(action), batch_size=self.batch_size,
@@ -324,6 +328,7 @@ class FixedWingEnv(EnvBase):
         then returns its buffers, which the next step overwrites."""
         stepper = self.stepper()
         refuse_bad_action(action, self.config.num_envs, self.task.action_dim)
+        self._reward_term_steps += 1
         observation, reward, reason, truncated, non_finite = stepper(action, with_state)
         state = stepper.state
         if stepper.state is None and (copy or (with_state and not self.config.lean)):
@@ -404,6 +409,17 @@ class FixedWingEnv(EnvBase):
         return TensorDict._new_unsafe(out, batch_size=batch, device=device)
 
     # ------------------------------------------------------------------ flight-env interface
+    def reward_term_means(self) -> dict[str, float]:
+        """{term: mean per env-step} of the task's named reward terms (``Task.reward_terms``; weighted and
+        signed, they sum to the reward) over the env steps since the last call, which starts them over;
+        empty for a task without named terms or before a step. The recipes log them as
+        ``reward/<term>``."""
+        task, steps = self.task, self._reward_term_steps
+        self._reward_term_steps = 0
+        sums = task.reward_term_sums.sum(0) / max(steps * self.config.num_envs, 1)
+        task.reward_term_sums.zero_()
+        return dict(zip(task.reward_terms, sums.tolist(), strict=True)) if steps else {}
+
     def trim_action(self) -> torch.Tensor:
         """[A] the task's straight-and-level trim command in its action channels (a copy)."""
         return self.task.trim.command[self.task.channels].clone()

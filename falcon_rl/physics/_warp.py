@@ -9,7 +9,10 @@ Kernel compilation is lazy (first launch) and cached on disk by Warp; :func:`ini
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    import torch
 
 try:
     import warp as wp
@@ -31,6 +34,18 @@ def warp_cuda_available() -> bool:
     if wp is None or not torch.cuda.is_available():
         return False
     return init_warp().get_cuda_device_count() > 0
+
+
+def warp_device(device: torch.device) -> str:
+    """Warp device name of a torch device ("cpu" or "cuda:<index>"); ValueError for other devices."""
+    import torch
+
+    if device.type == "cpu":
+        return "cpu"
+    if device.type == "cuda":
+        index = device.index if device.index is not None else torch.cuda.current_device()
+        return f"cuda:{index}"
+    raise ValueError(f"Warp runs on cpu or cuda devices, not {device}")
 
 
 def init_warp() -> Any:

@@ -17,6 +17,7 @@ from typing import Any
 import torch
 
 from . import state as S
+from ._warp import init_warp, warp_device
 from .aero_monomials import monomial_plan
 from .derived import DERIVED_WIDTH
 from .dynamics import AirInputs, derivative, derived_columns, hold_command, project
@@ -38,9 +39,12 @@ def integrate(x: torch.Tensor, command: torch.Tensor, params: ModelParams, air: 
 
 
 class TorchEngine(Engine):
-    """Steps the batch with the torch model; ``compile`` routes the step through torch.compile."""
+    """Steps the batch with the torch model; ``compile`` routes the step through torch.compile. It runs
+    a task's Warp kernels over its float32 buffers too (Warp on the same CPU or CUDA device), so a task's
+    fused step is the same code on both batch backends."""
 
     OPTIONS = ("compile",)
+    RUNS_TASK_KERNELS = True
 
     def __init__(self, setup: EngineSetup):
         super().__init__(setup)
@@ -88,6 +92,23 @@ class TorchEngine(Engine):
         turb.filter.copy_(filt)
         self.gust_velocity_body.copy_(gust_v)
         self.gust_rate_body.copy_(gust_w)
+
+    @property
+    def kernel_device(self) -> str:
+        return warp_device(self.setup.device)
+
+    def replayer(self, launches: list[Any], threads: int | None = None) -> Callable[[], None]:
+        """Replays ``launches`` in order, on torch's current CUDA stream on a GPU."""
+        device = self.setup.device
+        if device.type != "cuda":
+            return lambda: [launch.launch() for launch in launches] and None
+
+        def replay() -> None:
+            stream = init_warp().stream_from_torch(device)
+            for launch in launches:
+                launch.launch(stream=stream)
+
+        return replay
 
     def derived(self) -> torch.Tensor:
         out = derived_columns(self.x, self.params, self.air)

@@ -35,7 +35,7 @@ from typing import Any
 
 import torch
 
-from ._warp import capture_cpu_graph, init_warp
+from ._warp import capture_cpu_graph, init_warp, warp_device
 from .derived import DERIVED_WIDTH
 from .engine import Engine, EngineSetup
 from .params import bind_warp_params
@@ -88,16 +88,6 @@ def _pool() -> ThreadPoolExecutor:
         _POOL = ThreadPoolExecutor(max_workers=max(1, available_cores() - 1),
                                    thread_name_prefix="falcon-warp")
     return _POOL
-
-
-def warp_device(device: torch.device) -> str:
-    """Warp device name of a torch device ("cpu" or "cuda:<index>")."""
-    if device.type == "cpu":
-        return "cpu"
-    if device.type == "cuda":
-        index = device.index if device.index is not None else torch.cuda.current_device()
-        return f"cuda:{index}"
-    raise ValueError(f"the warp backend runs on cpu or cuda devices, not {device}")
 
 
 class WarpEngine(Engine):

@@ -144,7 +144,7 @@ class OffPolicyConfig(TrainConfig):
 #: simulator, bound the wall clock (one SAC step on a 256 batch costs 10-30 ms on one core), so: small
 #: networks (actor 64x64, critics 128x128), few envs and 16 envs x 16 steps = 256 frames feeding 64
 #: updates (update-to-data ratio 0.25). Measured on the Ranger altitude task (seed 1, one free core,
-#: falcon_rl/policies/README.md): SAC and TD3 both reach survival 1, acquisition 1 and RMSE
+#: docs/notes/policies-training-log.md): SAC and TD3 both reach survival 1, acquisition 1 and RMSE
 #: 0.37 / 0.35 m on the 100-episode protocol after 400 k frames (1,414 s / 1,127 s wall); at 100 k
 #: frames neither acquires reliably yet.
 OFF_POLICY_DEFAULTS: dict = {

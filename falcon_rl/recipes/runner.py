@@ -62,6 +62,7 @@ from ..atomic_files import default_file_mode, remove_temporaries, write_atomic
 from ..envs import task_spec
 from ..policies import FileFormatError, export_torchscript
 from ..policies.format import atomic_save, policy_document
+from ..transforms import flight_env
 from .checkpoint import check_resumable, load_checkpoint, load_replay, restore, save_checkpoint
 from .checks import check_config
 from .common import (
@@ -297,7 +298,10 @@ class TrainingRun:
         rate = self.stats.rate(c.frames)
         episode_scalars = self.stats.update(batch)
         self.check_episodes_finite()
-        row = {**episode_scalars, **scalars, "time/env_steps_per_s": rate,
+        base = flight_env(self.env, "control_dt")
+        terms = base.reward_term_means() if hasattr(base, "reward_term_means") else {}
+        row = {**episode_scalars, **scalars, **{f"reward/{name}": value for name, value in terms.items()},
+               "time/env_steps_per_s": rate,
                "time/wall_s": time.perf_counter() - self._t0, "time/collect_s": self.timing["collect_s"],
                "time/validate_s": self.timing["validate_s"]}
         log_scalars(self.logger, row, c.frames)

@@ -25,10 +25,11 @@ FLIGHT_ENV_INTERFACE: tuple[str, ...] = (
     "set_physical_parameters", "episode_step", "max_episode_steps", "set_episode_step", "stagger_episodes",
     "random_state", "set_random_state",
 )
-#: Optional member: ``seed_record`` (int, int), how many times the env was seeded (construction
-#: included) and the seed it last used (the drawn one when seeded with None). The random transforms
-#: reseed themselves from it when it changes; without it they keep their own seeds.
-OPTIONAL_FLIGHT_ENV_MEMBERS: tuple[str, ...] = ("seed_record",)
+#: Optional members: ``seed_record`` (int, int), how many times the env was seeded (construction
+#: included) and the seed it last used (the drawn one when seeded with None): the random transforms
+#: reseed themselves from it when it changes (without it they keep their own seeds);
+#: ``reward_term_means()``, the named reward terms' means since the last call: the recipes log them.
+OPTIONAL_FLIGHT_ENV_MEMBERS: tuple[str, ...] = ("seed_record", "reward_term_means")
 
 
 class FlightEnv(Protocol):

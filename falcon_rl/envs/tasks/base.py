@@ -143,6 +143,9 @@ class Task(ABC):
     observation_clip: ClassVar[float]
     #: Simulator command channels the action drives, in action order (0 elevator .. 3 throttle).
     action_channels: ClassVar[tuple[int, ...]] = (S.ELEVATOR, S.AILERON, S.RUDDER, S.THROTTLE)
+    #: Names of the reward's terms (weighted and signed: the reward is their sum, in this order), as
+    #: :meth:`reward_terms_of` returns them; empty for a task whose :meth:`reward` is one expression.
+    reward_terms: ClassVar[tuple[str, ...]] = ()
 
     def __init__(self, config: TaskConfig, sim: Simulator, generator: torch.Generator,
                  control_dt: float, ground_effect: bool | str = True):
@@ -168,6 +171,11 @@ class Task(ABC):
         #: Action of the previous env step (zero after a reset). [N, A]
         self.previous_action = torch.zeros(n, self.action_dim, device=self.device, dtype=self.dtype)
         self.time = torch.zeros(n, device=self.device, dtype=self.dtype)
+        k = len(self.reward_terms)
+        #: [N, K] each reward term of the last step (K = len(reward_terms)), and [N, K] their sums over
+        #: the steps since the env's last ``reward_term_means`` (the fused step writes both too).
+        self.reward_term_values = torch.zeros(n, k, device=self.device, dtype=self.dtype)
+        self.reward_term_sums = torch.zeros(n, k, device=self.device, dtype=self.dtype)
 
     @property
     def episode_seconds(self) -> float:
@@ -258,9 +266,25 @@ class Task(ABC):
     def observe(self, state: TensorDictBase) -> torch.Tensor:
         """[N, D] observation, scaled and clipped to +-observation_clip."""
 
-    @abstractmethod
     def reward(self, state: TensorDictBase, action: torch.Tensor) -> torch.Tensor:
-        """[N] reward of the transition that ended in ``state`` under ``action`` [N, A]."""
+        """[N] reward of the transition that ended in ``state`` under ``action`` [N, A]: the sum of
+        :meth:`reward_terms_of` in the order of :attr:`reward_terms` (each kept in
+        :attr:`reward_term_values` and added to :attr:`reward_term_sums`). A task may override this
+        with one expression instead (then it has no named terms)."""
+        terms = self.reward_terms_of(state, action)
+        if len(terms) != len(self.reward_terms):
+            raise ValueError(f"{type(self).__name__}.reward_terms_of gave {len(terms)} terms for the "
+                             f"{len(self.reward_terms)} names of reward_terms")
+        total = terms[0]
+        for term in terms[1:]:
+            total = total + term
+        torch.stack(terms, dim=-1, out=self.reward_term_values)
+        self.reward_term_sums += self.reward_term_values
+        return total
+
+    def reward_terms_of(self, state: TensorDictBase, action: torch.Tensor) -> tuple[torch.Tensor, ...]:
+        """The reward's terms, each [N], weighted and signed, in the order of :attr:`reward_terms`."""
+        raise NotImplementedError(f"{type(self).__name__} defines neither reward nor reward_terms_of")
 
     def termination_checks(self, state: TensorDictBase) -> dict[str, torch.Tensor]:
         """{reason: [N] bool} of the terminations this task checks (names of TERMINATION_REASONS):

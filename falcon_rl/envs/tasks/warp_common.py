@@ -127,6 +127,20 @@ def wrap_angle_wp(angle: float) -> float:
 
 
 @wp.func
+def write_reward_terms(values: wp.array2d(dtype=wp.float32), sums: wp.array2d(dtype=wp.float32), i: int,
+                       terms: Any) -> float:
+    """The reward of env i, the sum of ``terms`` (a vector of the task's K weighted, signed terms) in
+    order, as ``Task.reward`` sums them; writes them into ``values[i]`` [K] and adds them to ``sums[i]``."""
+    total = terms[0]
+    for k in range(1, values.shape[1]):
+        total = total + terms[k]
+    for k in range(values.shape[1]):
+        values[i, k] = terms[k]
+        sums[i, k] = sums[i, k] + terms[k]
+    return total
+
+
+@wp.func
 def clip(v: float, limit: float) -> float:
     """v clamped to +-limit (the observation clip), a NaN stays NaN."""
     return clamp_keep_nan(v, -limit, limit)
@@ -143,6 +157,14 @@ def warp_view(tensor: torch.Tensor) -> Any:
     if tensor.dim() == 2:
         return wp.from_torch(tensor, dtype=_VECTOR[tensor.shape[1]])
     return wp.from_torch(tensor)
+
+
+def bind_reward_terms(buffers: Any, task: Task) -> Any:
+    """Set a task buffers struct's ``reward_term_values`` and ``reward_term_sums`` to views of the task's
+    [N, K] tensors (2D arrays, whatever K). Returns ``buffers``."""
+    buffers.reward_term_values = wp.from_torch(task.reward_term_values)
+    buffers.reward_term_sums = wp.from_torch(task.reward_term_sums)
+    return buffers
 
 
 def fill_struct(struct: Any, values: dict[str, Any]) -> Any:
@@ -285,7 +307,7 @@ def fused_stepper(task: Task, owner: type, methods: tuple[str, ...], factory: ty
     torch, ``Task.step``, and a RuntimeWarning says so once per class: its kernels twin ``owner``'s
     methods, not the subclass's), else the task's ``factory`` step, built on the first call and kept in
     ``task._fused`` (its ``owner`` set: ``Task.fused_starter`` checks ``after_reset`` against it)."""
-    if not task.sim.engine.RUNS_TASK_KERNELS:
+    if not task.sim.engine.runs_task_kernels:
         return None
     overridden = [name for name in methods if getattr(type(task), name) is not getattr(owner, name)]
     if overridden:

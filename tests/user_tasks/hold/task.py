@@ -61,7 +61,7 @@ class HoldTask(Task):
         return {"height_error": self.height_error.clone()}
 
     def fused_stepper(self) -> FusedStep | None:
-        if not self.sim.engine.RUNS_TASK_KERNELS:
+        if not self.sim.engine.runs_task_kernels:
             return None
         from .kernels import FusedHoldStep
 

@@ -37,6 +37,7 @@ from ....physics.task_kernels import (
 )
 from ..warp_common import (
     FusedStep,
+    bind_reward_terms,
     clamp_keep_nan,
     clamp_max_keep_nan,
     clamp_min_keep_nan,
@@ -46,9 +47,13 @@ from ..warp_common import (
     taper_wp,
     termination_code,
     torch_sign,
+    write_reward_terms,
 )
 
 forward_only(__name__)
+
+#: The reward's 8 terms of one env, in the order of the task's ``reward_terms``.
+RewardTerms = wp.types.vector(length=8, dtype=wp.float32)
 
 if TYPE_CHECKING:
     from ..base import Task
@@ -60,6 +65,8 @@ class AltitudeBuffers:
     target shift [N] int64 and the target table [T]."""
 
     time: wp.array(dtype=wp.float32)
+    reward_term_values: wp.array2d(dtype=wp.float32)  # [N, K] the step's reward terms
+    reward_term_sums: wp.array2d(dtype=wp.float32)  # [N, K] their sums since the last read
     climb_rate: wp.array(dtype=wp.float32)
     target: wp.array(dtype=wp.float32)
     initial_altitude: wp.array(dtype=wp.float32)
@@ -216,14 +223,15 @@ def altitude_step(sim: SimulatorViews, buf: AltitudeBuffers, c: AltitudeConstant
     past_target = clamp_min_keep_nan(torch_sign(target - initial) * (height - target), 0.0)
     energy_rate = -f.velocity_ned[2] + airspeed * airspeed_rate / c.gravity
     energy_error = (energy_rate - ref[1]) / c.climb_rate_limit
-    reward[i] = (c.w_altitude * gaussian_wp(e_h, c.sigma_altitude)
-                 - c.w_airspeed * wp.abs(e_v) / c.trim_airspeed
-                 - c.w_pitch_rate * clamp_max_keep_nan(pitch_rate * pitch_rate, c.pitch_rate_cap)
-                 - c.w_smooth * action_rate * taper_wp(e_h, c.gate_band)
-                 + c.w_altitude * taper_wp(e_h, c.capture_band) * taper_wp(e_v, c.airspeed_band)
-                 + c.survival_bonus
-                 - c.w_overshoot * past_target
-                 - c.w_energy_rate * clamp_max_keep_nan(wp.abs(energy_error), c.energy_rate_cap))
+    reward[i] = write_reward_terms(buf.reward_term_values, buf.reward_term_sums, i, RewardTerms(
+        c.w_altitude * gaussian_wp(e_h, c.sigma_altitude),
+        -(c.w_airspeed * wp.abs(e_v) / c.trim_airspeed),
+        -(c.w_pitch_rate * clamp_max_keep_nan(pitch_rate * pitch_rate, c.pitch_rate_cap)),
+        -(c.w_smooth * action_rate * taper_wp(e_h, c.gate_band)),
+        c.w_altitude * taper_wp(e_h, c.capture_band) * taper_wp(e_v, c.airspeed_band),
+        c.survival_bonus,
+        -(c.w_overshoot * past_target),
+        -(c.w_energy_rate * clamp_max_keep_nan(wp.abs(energy_error), c.energy_rate_cap))))
     reason[i] = termination_code(f, c.stall_alpha, c.stall_speed, False)
     buf.previous_action[i] = action
     write_observation(f, c, e_h, elevator_rate, integral, ref[1], observation, i)
@@ -309,6 +317,7 @@ class FusedAltitudeStep(FusedStep):
                          "previous_airspeed", "airspeed_rate", "reference", "reference_rate",
                          "altitude_error", "reference_error", "target_table", "previous_action")})
         fill_struct(buf, {"action": self.action, "shift": self.shift})
+        bind_reward_terms(buf, task)
         return [buf, altitude_constants(task)]
 
     def draw(self) -> None:

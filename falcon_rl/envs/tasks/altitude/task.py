@@ -111,6 +111,8 @@ class AltitudeTask(Task):
     action_channels = (S.ELEVATOR, S.THROTTLE)
     #: Cap on |e_E| in the energy-rate penalty (a stall recovery's dV/dt would otherwise swamp the reward).
     energy_rate_cap = 4.0
+    reward_terms = ("altitude", "airspeed", "pitch_rate", "smoothness", "capture", "survival", "overshoot",
+                    "energy_rate")
     config: AltitudeConfig
 
     def __init__(self, config: AltitudeConfig, sim: Simulator, generator: torch.Generator,
@@ -233,7 +235,7 @@ class AltitudeTask(Task):
         ], dim=-1)
         return obs.clamp(-self.observation_clip, self.observation_clip)
 
-    def reward(self, state: TensorDictBase, action: torch.Tensor) -> torch.Tensor:
+    def reward_terms_of(self, state: TensorDictBase, action: torch.Tensor) -> tuple[torch.Tensor, ...]:
         cfg = self.config
         e_h = state["height"] - self.reference
         e_v = state["airspeed"] - self.trim_airspeed
@@ -241,15 +243,15 @@ class AltitudeTask(Task):
         action_rate = torch.linalg.vector_norm(action - self.previous_action, dim=-1)
         direction = torch.sign(self.target - self.initial_altitude)
         past_target = (direction * (state["height"] - self.target)).clamp_min(0.0)
-        return (cfg.w_altitude * gaussian(e_h, cfg.sigma_altitude)
-                - cfg.w_airspeed * e_v.abs() / self.trim_airspeed
-                - cfg.w_pitch_rate * torch.clamp(q * q, max=cfg.pitch_rate_cap)
-                - cfg.w_smooth * action_rate * taper(e_h, cfg.gate_band)
-                + cfg.w_altitude * taper(e_h, cfg.capture_band)
-                * taper(e_v, cfg.airspeed_band_fraction * self.trim_airspeed)
-                + cfg.survival_bonus
-                - cfg.w_overshoot * past_target
-                - cfg.w_energy_rate * self.energy_rate_error(state).abs().clamp(max=self.energy_rate_cap))
+        return (cfg.w_altitude * gaussian(e_h, cfg.sigma_altitude),
+                -(cfg.w_airspeed * e_v.abs() / self.trim_airspeed),
+                -(cfg.w_pitch_rate * torch.clamp(q * q, max=cfg.pitch_rate_cap)),
+                -(cfg.w_smooth * action_rate * taper(e_h, cfg.gate_band)),
+                cfg.w_altitude * taper(e_h, cfg.capture_band)
+                * taper(e_v, cfg.airspeed_band_fraction * self.trim_airspeed),
+                torch.full_like(e_h, cfg.survival_bonus),
+                -(cfg.w_overshoot * past_target),
+                -(cfg.w_energy_rate * self.energy_rate_error(state).abs().clamp(max=self.energy_rate_cap)))
 
     def energy_rate_error(self, state: TensorDictBase) -> torch.Tensor:
         """e_E [N]: (hdot + V_a dV_a/dt / g - hdot_ref) / r, r the reference climb rate limit."""
@@ -263,7 +265,7 @@ class AltitudeTask(Task):
         when a subclass overrides a method of the step): (observation [N, 11], reward [N], reason [N]
         long), buffers overwritten by the next call. With ``target_sequence`` the random shift is drawn
         from the task's generator in torch before the launch, exactly as :meth:`step` draws it."""
-        if not self.sim.engine.RUNS_TASK_KERNELS:
+        if not self.sim.engine.runs_task_kernels:
             return None
         from ..warp_common import fused_stepper
         from .kernels import FusedAltitudeStep
@@ -285,5 +287,6 @@ class AltitudeTask(Task):
 
 
 #: The methods :meth:`AltitudeTask.fused_step` fuses: a subclass that overrides one falls back to ``step``.
-_FUSED_METHODS: tuple[str, ...] = ("step", "advance", "update", "reward", "observe", "termination_checks",
+_FUSED_METHODS: tuple[str, ...] = ("step", "advance", "update", "reward", "reward_terms_of", "observe",
+                                   "termination_checks",
                                    "termination_reason", "_update_reference", "_release_next_targets")

@@ -27,14 +27,19 @@ from ....physics.task_kernels import FlightState, SimulatorViews, flight_state, 
 from ..warp_common import (
     FusedStep,
     airspeed_margin_penalty_wp,
+    bind_reward_terms,
     clamp_keep_nan,
     clip,
     fill_struct,
     gaussian_wp,
     termination_code,
+    write_reward_terms,
 )
 
 forward_only(__name__)
+
+#: The reward's 5 terms of one env, in the order of the task's ``reward_terms``.
+RewardTerms = wp.types.vector(length=5, dtype=wp.float32)
 
 if TYPE_CHECKING:
     from ..base import Task
@@ -46,6 +51,8 @@ class AttitudeBuffers:
     actions [N] vec4, the step's uniforms [N] vec4 and the maneuver table [T] vec3."""
 
     time: wp.array(dtype=wp.float32)
+    reward_term_values: wp.array2d(dtype=wp.float32)  # [N, K] the step's reward terms
+    reward_term_sums: wp.array2d(dtype=wp.float32)  # [N, K] their sums since the last read
     step_index: wp.array(dtype=wp.int64)
     commanded: wp.array(dtype=wp.vec3)
     errors: wp.array(dtype=wp.vec3)
@@ -161,11 +168,12 @@ def attitude_step(sim: SimulatorViews, buf: AttitudeBuffers, c: AttitudeConstant
     # reward
     action = buf.action[i]
     action_rate = wp.length_sq(action - buf.previous_action[i])
-    reward[i] = (c.w_bank * gaussian_wp(errors[0], c.sigma_bank)
-                 + c.w_climb * gaussian_wp(errors[1], c.sigma_climb)
-                 + c.w_airspeed * gaussian_wp(errors[2], c.sigma_airspeed)
-                 - c.w_energy * airspeed_margin_penalty_wp(f.airspeed, c.safe_airspeed)
-                 - c.w_smooth * action_rate)
+    reward[i] = write_reward_terms(buf.reward_term_values, buf.reward_term_sums, i, RewardTerms(
+        c.w_bank * gaussian_wp(errors[0], c.sigma_bank),
+        c.w_climb * gaussian_wp(errors[1], c.sigma_climb),
+        c.w_airspeed * gaussian_wp(errors[2], c.sigma_airspeed),
+        -(c.w_energy * airspeed_margin_penalty_wp(f.airspeed, c.safe_airspeed)),
+        -(c.w_smooth * action_rate)))
     reason[i] = termination_code(f, c.stall_alpha, c.stall_speed, False)
     buf.previous_action[i] = action
     write_observation(f, c, errors, action, observation, i)
@@ -252,14 +260,14 @@ class FusedAttitudeStep(FusedStep):
         task = self.task
         stream = task.random_stream
         vec3, scalar = self._unused["vec3"], self._unused["scalar"]
-        return [fill_struct(AttitudeBuffers(), {
+        return [bind_reward_terms(fill_struct(AttitudeBuffers(), {
             "time": task.time, "step_index": task.step_index, "commanded": task.commanded,
             "errors": task.errors, "previous_action": task.previous_action, "action": self.action,
             "stream_command": stream.command if stream is not None else vec3,
             "stream_target": stream.target if stream is not None else vec3,
             "stream_timer": stream.timer if stream is not None else scalar, "draws": self.draws,
             "table": task.table if task.table is not None else vec3,
-        }), attitude_constants(task)]
+        }), task), attitude_constants(task)]
 
     def draw(self) -> None:
         """The random stream's uniforms [N, 4], drawn as ``RandomCommandStream._draw`` does each step."""

@@ -79,6 +79,7 @@ class AttitudeTask(Task):
     observation_dim = 15
     action_dim = 4
     observation_clip = 5.0
+    reward_terms = ("bank", "climb", "airspeed", "energy", "smoothness")
     config: AttitudeConfig
 
     def __init__(self, config: AttitudeConfig, sim: Simulator, generator: torch.Generator,
@@ -161,16 +162,16 @@ class AttitudeTask(Task):
                         dim=-1)
         return obs.clamp(-self.observation_clip, self.observation_clip)
 
-    def reward(self, state: TensorDictBase, action: torch.Tensor) -> torch.Tensor:
+    def reward_terms_of(self, state: TensorDictBase, action: torch.Tensor) -> tuple[torch.Tensor, ...]:
         cfg = self.config
         env = self.airframe.envelope
         e_phi, e_hdot, e_v = self.errors.unbind(-1)
-        tracking = (cfg.w_bank * gaussian(e_phi, cfg.sigma_bank)
-                    + cfg.w_climb * gaussian(e_hdot, cfg.sigma_climb_fraction * env.climb_rate_limit)
-                    + cfg.w_airspeed * gaussian(e_v, cfg.sigma_airspeed_fraction * env.cruise_speed))
         action_rate = ((action - self.previous_action) ** 2).sum(-1)
-        return (tracking - cfg.w_energy * airspeed_margin_penalty(state["airspeed"], self.safe_airspeed)
-                - cfg.w_smooth * action_rate)
+        return (cfg.w_bank * gaussian(e_phi, cfg.sigma_bank),
+                cfg.w_climb * gaussian(e_hdot, cfg.sigma_climb_fraction * env.climb_rate_limit),
+                cfg.w_airspeed * gaussian(e_v, cfg.sigma_airspeed_fraction * env.cruise_speed),
+                -(cfg.w_energy * airspeed_margin_penalty(state["airspeed"], self.safe_airspeed)),
+                -(cfg.w_smooth * action_rate))
 
     # ------------------------------------------------------------------ fused step
     def fused_stepper(self) -> FusedStep | None:
@@ -179,7 +180,7 @@ class AttitudeTask(Task):
         (observation [N, 15], reward [N], reason [N] long), buffers overwritten by the next call."""
         stream = self.random_stream
         custom_stream = stream is not None and type(stream) is not RandomCommandStream
-        if not self.sim.engine.RUNS_TASK_KERNELS or custom_stream:
+        if not self.sim.engine.runs_task_kernels or custom_stream:
             return None
         from ..warp_common import fused_stepper
         from .kernels import FusedAttitudeStep
@@ -201,5 +202,6 @@ class AttitudeTask(Task):
 
 
 #: The methods :meth:`AttitudeTask.fused_step` fuses: a subclass that overrides one falls back to ``step``.
-_FUSED_METHODS: tuple[str, ...] = ("step", "advance", "update", "reward", "observe", "termination_checks",
+_FUSED_METHODS: tuple[str, ...] = ("step", "advance", "update", "reward", "reward_terms_of", "observe",
+                                   "termination_checks",
                                    "termination_reason", "_current_command", "_update_errors")

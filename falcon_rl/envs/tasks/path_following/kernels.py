@@ -24,14 +24,19 @@ from ....physics.task_kernels import FlightState, SimulatorViews, flight_state, 
 from ..warp_common import (
     FusedStep,
     airspeed_margin_penalty_wp,
+    bind_reward_terms,
     clip,
     fill_struct,
     gaussian_wp,
     termination_code,
     wrap_angle_wp,
+    write_reward_terms,
 )
 
 forward_only(__name__)
+
+#: The reward's 5 terms of one env, in the order of the task's ``reward_terms``.
+RewardTerms = wp.types.vector(length=5, dtype=wp.float32)
 
 if TYPE_CHECKING:
     from ..base import Task
@@ -42,6 +47,8 @@ class PathFollowingBuffers:
     """The task's per-env buffers (views of PathFollowingTask's tensors) and the actions [N] vec4."""
 
     time: wp.array(dtype=wp.float32)
+    reward_term_values: wp.array2d(dtype=wp.float32)  # [N, K] the step's reward terms
+    reward_term_sums: wp.array2d(dtype=wp.float32)  # [N, K] their sums since the last read
     path_point: wp.array(dtype=wp.vec2)
     path_course: wp.array(dtype=wp.float32)
     errors: wp.array(dtype=wp.vec3)
@@ -128,11 +135,12 @@ def path_following_step(sim: SimulatorViews, buf: PathFollowingBuffers, c: PathF
     # reward
     action = buf.action[i]
     action_rate = wp.length_sq(action - buf.previous_action[i])
-    reward[i] = (c.w_cross_track * gaussian_wp(cross_track, c.sigma_cross_track)
-                 + c.w_course * gaussian_wp(course_error, c.sigma_course)
-                 + c.w_altitude * gaussian_wp(altitude_error, c.sigma_altitude)
-                 - c.w_energy * airspeed_margin_penalty_wp(f.airspeed, c.safe_airspeed)
-                 - c.w_smooth * action_rate)
+    reward[i] = write_reward_terms(buf.reward_term_values, buf.reward_term_sums, i, RewardTerms(
+        c.w_cross_track * gaussian_wp(cross_track, c.sigma_cross_track),
+        c.w_course * gaussian_wp(course_error, c.sigma_course),
+        c.w_altitude * gaussian_wp(altitude_error, c.sigma_altitude),
+        -(c.w_energy * airspeed_margin_penalty_wp(f.airspeed, c.safe_airspeed)),
+        -(c.w_smooth * action_rate)))
     reason[i] = termination_code(f, c.stall_alpha, c.stall_speed, wp.abs(cross_track) > c.lost_distance)
     buf.previous_action[i] = action
     write_observation(f, c, errors, action, observation, i)
@@ -180,6 +188,7 @@ class FusedPathFollowingStep(FusedStep):
         buf = fill_struct(PathFollowingBuffers(), {
             "time": task.time, "path_point": task.path_point, "path_course": task.path_course,
             "errors": task.errors, "previous_action": task.previous_action, "action": self.action})
+        bind_reward_terms(buf, task)
         constants = fill_struct(PathFollowingConstants(), {
             "control_dt": task.control_dt, "path_height": cfg.initial_height,
             "lost_distance": cfg.lost_distance,

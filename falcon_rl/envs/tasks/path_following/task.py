@@ -78,6 +78,7 @@ class PathFollowingTask(Task):
     observation_dim = 17
     action_dim = 4
     observation_clip = 5.0
+    reward_terms = ("cross_track", "course", "altitude", "energy", "smoothness")
     config: PathFollowingConfig
 
     def __init__(self, config: PathFollowingConfig, sim: Simulator, generator: torch.Generator,
@@ -129,15 +130,15 @@ class PathFollowingTask(Task):
         obs = torch.cat([scalars, state["angular_rate_body"] / 2.0, self.previous_action], dim=-1)
         return obs.clamp(-self.observation_clip, self.observation_clip)
 
-    def reward(self, state: TensorDictBase, action: torch.Tensor) -> torch.Tensor:
+    def reward_terms_of(self, state: TensorDictBase, action: torch.Tensor) -> tuple[torch.Tensor, ...]:
         cfg = self.config
         e_y, chi, e_h = self.errors.unbind(-1)
         action_rate = ((action - self.previous_action) ** 2).sum(-1)
-        return (cfg.w_cross_track * gaussian(e_y, cfg.sigma_cross_track)
-                + cfg.w_course * gaussian(chi, cfg.sigma_course)
-                + cfg.w_altitude * gaussian(e_h, cfg.sigma_altitude)
-                - cfg.w_energy * airspeed_margin_penalty(state["airspeed"], self.safe_airspeed)
-                - cfg.w_smooth * action_rate)
+        return (cfg.w_cross_track * gaussian(e_y, cfg.sigma_cross_track),
+                cfg.w_course * gaussian(chi, cfg.sigma_course),
+                cfg.w_altitude * gaussian(e_h, cfg.sigma_altitude),
+                -(cfg.w_energy * airspeed_margin_penalty(state["airspeed"], self.safe_airspeed)),
+                -(cfg.w_smooth * action_rate))
 
     def termination_checks(self, state: TensorDictBase) -> dict[str, torch.Tensor]:
         """The shared checks plus "lost": cross-track error beyond ``lost_distance``."""
@@ -148,7 +149,7 @@ class PathFollowingTask(Task):
         """:meth:`step` as one Warp kernel on the warp backend (``path_following.kernels``; None elsewhere,
         or when a subclass overrides a method of the step): (observation [N, 17], reward [N], reason [N]
         long), buffers overwritten by the next call."""
-        if not self.sim.engine.RUNS_TASK_KERNELS:
+        if not self.sim.engine.runs_task_kernels:
             return None
         from ..warp_common import fused_stepper
         from .kernels import FusedPathFollowingStep
@@ -164,5 +165,6 @@ class PathFollowingTask(Task):
 
 #: The methods :meth:`PathFollowingTask.fused_step` fuses: a subclass that overrides one falls back to
 #: ``step``.
-_FUSED_METHODS: tuple[str, ...] = ("step", "advance", "update", "reward", "observe", "termination_checks",
+_FUSED_METHODS: tuple[str, ...] = ("step", "advance", "update", "reward", "reward_terms_of", "observe",
+                                   "termination_checks",
                                    "termination_reason")

@@ -24,13 +24,18 @@ from ....physics.task_kernels import FlightState, SimulatorViews, flight_state, 
 from ..warp_common import (
     FusedStep,
     airspeed_margin_penalty_wp,
+    bind_reward_terms,
     clip,
     fill_struct,
     gaussian_wp,
     termination_code,
+    write_reward_terms,
 )
 
 forward_only(__name__)
+
+#: The reward's 4 terms of one env, in the order of the task's ``reward_terms``.
+RewardTerms = wp.types.vector(length=4, dtype=wp.float32)
 
 if TYPE_CHECKING:
     from ..base import Task
@@ -41,6 +46,8 @@ class TrajectoryBuffers:
     """The task's per-env buffers (views of TrajectoryTask's tensors) and the actions [N] vec4."""
 
     time: wp.array(dtype=wp.float32)
+    reward_term_values: wp.array2d(dtype=wp.float32)  # [N, K] the step's reward terms
+    reward_term_sums: wp.array2d(dtype=wp.float32)  # [N, K] their sums since the last read
     start: wp.array(dtype=wp.vec3)
     radius: wp.array(dtype=wp.float32)
     turn: wp.array(dtype=wp.float32)
@@ -145,10 +152,11 @@ def trajectory_step(sim: SimulatorViews, buf: TrajectoryBuffers, c: TrajectoryCo
     distance = wp.length(position_error)
     action = buf.action[i]
     action_rate = wp.length_sq(action - buf.previous_action[i])
-    reward[i] = (c.w_position * gaussian_wp(distance, c.sigma_position)
-                 + c.w_velocity * gaussian_wp(wp.length(velocity_error), c.sigma_velocity)
-                 - c.w_energy * airspeed_margin_penalty_wp(f.airspeed, c.safe_airspeed)
-                 - c.w_smooth * action_rate)
+    reward[i] = write_reward_terms(buf.reward_term_values, buf.reward_term_sums, i, RewardTerms(
+        c.w_position * gaussian_wp(distance, c.sigma_position),
+        c.w_velocity * gaussian_wp(wp.length(velocity_error), c.sigma_velocity),
+        -(c.w_energy * airspeed_margin_penalty_wp(f.airspeed, c.safe_airspeed)),
+        -(c.w_smooth * action_rate)))
     reason[i] = termination_code(f, c.stall_alpha, c.stall_speed, distance > c.lost_distance)
     buf.previous_action[i] = action
     write_observation(f, c, position_error, velocity_error, action, observation, i)
@@ -200,6 +208,7 @@ class FusedTrajectoryStep(FusedStep):
                          "reference_velocity", "position_error", "velocity_error", "position_error_ned",
                          "previous_action")})
         fill_struct(buf, {"action": self.action})
+        bind_reward_terms(buf, task)
         constants = fill_struct(TrajectoryConstants(), {
             "control_dt": task.control_dt, "speed": task.speed, "lost_distance": cfg.lost_distance,
             "velocity_scale": cfg.airspeed_scale * task.speed, "angle_scale": math.pi / 4,

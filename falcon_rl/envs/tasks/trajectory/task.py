@@ -82,6 +82,7 @@ class TrajectoryTask(Task):
     observation_dim = 17
     action_dim = 4
     observation_clip = 5.0
+    reward_terms = ("position", "velocity", "energy", "smoothness")
     config: TrajectoryConfig
 
     def __init__(self, config: TrajectoryConfig, sim: Simulator, generator: torch.Generator,
@@ -156,15 +157,15 @@ class TrajectoryTask(Task):
                          self.previous_action], dim=-1)
         return obs.clamp(-self.observation_clip, self.observation_clip)
 
-    def reward(self, state: TensorDictBase, action: torch.Tensor) -> torch.Tensor:
+    def reward_terms_of(self, state: TensorDictBase, action: torch.Tensor) -> tuple[torch.Tensor, ...]:
         cfg = self.config
         distance = torch.linalg.vector_norm(self.position_error, dim=-1)
         speed_error = torch.linalg.vector_norm(self.velocity_error, dim=-1)
         action_rate = ((action - self.previous_action) ** 2).sum(-1)
-        return (cfg.w_position * gaussian(distance, cfg.sigma_position)
-                + cfg.w_velocity * gaussian(speed_error, cfg.sigma_velocity_fraction * self.speed)
-                - cfg.w_energy * airspeed_margin_penalty(state["airspeed"], self.safe_airspeed)
-                - cfg.w_smooth * action_rate)
+        return (cfg.w_position * gaussian(distance, cfg.sigma_position),
+                cfg.w_velocity * gaussian(speed_error, cfg.sigma_velocity_fraction * self.speed),
+                -(cfg.w_energy * airspeed_margin_penalty(state["airspeed"], self.safe_airspeed)),
+                -(cfg.w_smooth * action_rate))
 
     def termination_checks(self, state: TensorDictBase) -> dict[str, torch.Tensor]:
         """The shared checks plus "lost": 3D distance to the reference beyond ``lost_distance``."""
@@ -175,7 +176,7 @@ class TrajectoryTask(Task):
         """:meth:`step` as one Warp kernel on the warp backend (``trajectory.kernels``; None elsewhere, or
         when a subclass overrides a method of the step): (observation [N, 17], reward [N], reason [N]
         long), buffers overwritten by the next call."""
-        if not self.sim.engine.RUNS_TASK_KERNELS:
+        if not self.sim.engine.runs_task_kernels:
             return None
         from ..warp_common import fused_stepper
         from .kernels import FusedTrajectoryStep
@@ -190,5 +191,6 @@ class TrajectoryTask(Task):
 
 
 #: The methods :meth:`TrajectoryTask.fused_step` fuses: a subclass that overrides one falls back to ``step``.
-_FUSED_METHODS: tuple[str, ...] = ("step", "advance", "advance_reference", "update", "reward", "observe",
+_FUSED_METHODS: tuple[str, ...] = ("step", "advance", "advance_reference", "update", "reward",
+                                   "reward_terms_of", "observe",
                                    "termination_checks", "termination_reason")
