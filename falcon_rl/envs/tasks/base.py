@@ -176,6 +176,8 @@ class Task(ABC):
         #: the steps since the env's last ``reward_term_means`` (the fused step writes both too).
         self.reward_term_values = torch.zeros(n, k, device=self.device, dtype=self.dtype)
         self.reward_term_sums = torch.zeros(n, k, device=self.device, dtype=self.dtype)
+        #: Env steps since the sums started (the env counts them and starts them over).
+        self.reward_term_steps = 0
 
     @property
     def episode_seconds(self) -> float:
