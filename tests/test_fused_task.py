@@ -378,12 +378,17 @@ def test_every_registered_task_has_a_fused_warp_step():
         assert reference.task.fused_step(action.double()) is None, name
 
 
+CUDA = pytest.param("cuda", marks=pytest.mark.skipif(not warp_cuda_available(), reason="needs CUDA"))
+
+
+@pytest.mark.parametrize("device", ["cpu", CUDA])
 @pytest.mark.parametrize("task", ["altitude", "attitude", "path_following", "trajectory", "climb_descend"])
-def test_on_the_torch_engine_the_fused_step_matches_the_torch_step(task):
-    """The torch engine runs the task's Warp step after its torch physics: the same rollout as the
-    task's torch step on the same engine, auto-resets and terminations included."""
+def test_on_the_torch_engine_the_fused_step_matches_the_torch_step(task, device):
+    """The torch engine runs the task's Warp step after its torch physics (on torch's stream on a GPU):
+    the same rollout as the task's torch step on the same engine, auto-resets and terminations
+    included."""
     envs = {fused: make_env(task, "volantex_ranger", num_envs=N, backend="torch", seed=3, wind=WIND,
-                            episode_seconds=3.0, fused=fused) for fused in (False, True)}
+                            episode_seconds=3.0, fused=fused, device=device) for fused in (False, True)}
     assert envs[True].task.fused_stepper() is not None and envs[False].task.fused_stepper() is not None
     rollouts = {fused: roll(env, 90, hold_seconds=1.0) for fused, env in envs.items()}
     assert int(rollouts[True]["next", "done"].sum()) > 0

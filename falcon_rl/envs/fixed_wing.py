@@ -299,7 +299,7 @@ class FixedWingEnv(EnvBase):
         """[N, D] observation the task makes of ``state`` (fields as under ("state", ...), e.g. a
         measured one; [N, 1] scalars or the simulator's [N]) with its current buffers, without side
         effects (the sensor transform's hook)."""
-        return self.task.observe(simulator_layout(state, self.config.num_envs))
+        return self.task.observation_of(simulator_layout(state, self.config.num_envs), self.config.fused)
 
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
         action = tensordict.get("action", None)

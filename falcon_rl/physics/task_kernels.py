@@ -8,6 +8,8 @@ writes its step as ``@wp.func`` functions of one env (``i``) and this module giv
   (position, NED velocity, Euler angles, body rates, clamped surfaces, mean throttle, airspeed, alpha,
   beta, height, lower wing-tip height) computed for one env with the same ``@wp.func`` twins and
   expressions as the engine's evaluation kernel (no aerodynamics, no propulsion);
+- :class:`MeasuredViews` and :func:`measured_flight_state`: the same flight state read from a given
+  (e.g. measured) state TensorDict, for :func:`observe_kernel`, a task's observation of it;
 - :func:`task_kernels`: the step and start kernels around a task's functions, in the task's own Warp
   module, each env i = offset + tid (``offset``: the first env of a slice, ``Engine.kernel_slices``) with
   denormals flushed as the physics' kernels do.
@@ -48,6 +50,7 @@ class TaskStep(Protocol):
     owner: type
     kernel_func: Any
     start_kernel: Any
+    observe_kernel: Any
     buffers: type
     constants: type
     action: torch.Tensor
@@ -60,6 +63,11 @@ class TaskStep(Protocol):
     def start(self, mask: torch.Tensor) -> torch.Tensor:
         """Start the episodes of the rows in ``mask`` [N] bool after their physics reset; returns every
         env's observation [N, D] (a buffer the next call overwrites)."""
+        ...
+
+    def observe(self, state: Any) -> torch.Tensor:
+        """[N, D] the observation of a given (measured) state with the current buffers (given an
+        ``observe_kernel``)."""
         ...
 
     def ensure_bound(self) -> None: ...
@@ -149,6 +157,95 @@ def normalised_surface(f: FlightState, k: int) -> float:
     return 2.0 * (f.surfaces[k] - lo) / (f.surface_max[k] - lo) - 1.0
 
 
+@wp.struct
+class MeasuredViews:
+    """The fields of a state TensorDict a task observes (a measured state, e.g. through the sensor
+    transform), [N] or [N, 3] each, throttle [N, M], and the surface limits [N] vec3."""
+
+    position_ned: wp.array(dtype=wp.vec3)
+    velocity_ned: wp.array(dtype=wp.vec3)
+    euler: wp.array(dtype=wp.vec3)
+    angular_rate: wp.array(dtype=wp.vec3)
+    surfaces: wp.array(dtype=wp.vec3)
+    throttle: wp.array2d(dtype=wp.float32)
+    airspeed: wp.array(dtype=wp.float32)
+    alpha: wp.array(dtype=wp.float32)
+    beta: wp.array(dtype=wp.float32)
+    height: wp.array(dtype=wp.float32)
+    surface_min: wp.array(dtype=wp.vec3)
+    surface_max: wp.array(dtype=wp.vec3)
+
+
+@wp.func
+def measured_flight_state(m: MeasuredViews, i: int) -> FlightState:
+    """Env i's flight state as a state TensorDict gives it (surfaces as given, not clamped; the lower
+    wing tip at the CG's height: an observation does not read it)."""
+    f = FlightState()
+    f.position_ned = m.position_ned[i]
+    f.velocity_ned = m.velocity_ned[i]
+    f.euler = m.euler[i]
+    f.angular_rate = m.angular_rate[i]
+    f.surfaces = m.surfaces[i]
+    f.surface_min = m.surface_min[i]
+    f.surface_max = m.surface_max[i]
+    motors = m.throttle.shape[1]
+    throttle = wp.float32(0.0)
+    for k in range(motors):
+        throttle += m.throttle[i, k]
+    f.throttle = throttle / float(motors)
+    f.airspeed = m.airspeed[i]
+    f.alpha = m.alpha[i]
+    f.beta = m.beta[i]
+    f.height = m.height[i]
+    f.lowest_tip = m.height[i]
+    return f
+
+
+#: The state entries :class:`MeasuredViews` reads, by field: (key in the state, trailing width).
+MEASURED_FIELDS: dict[str, tuple[str, int]] = {
+    "position_ned": ("position_ned", 3), "velocity_ned": ("velocity_ned", 3), "euler": ("euler", 3),
+    "angular_rate": ("angular_rate_body", 3), "surfaces": ("surface_position", 3),
+    "throttle": ("throttle", 0),
+    "airspeed": ("airspeed", 1), "alpha": ("alpha", 1), "beta": ("beta", 1), "height": ("height", 1)}
+
+
+def measured_views(state: Any, num_envs: int, surface_min: torch.Tensor, surface_max: torch.Tensor
+                   ) -> tuple[Any, list[torch.Tensor]]:
+    """(:class:`MeasuredViews`, the float32 contiguous tensors it views: keep them alive until the
+    launch ran) of the entries of ``state`` (a mapping of [N], [N, 1] or [N, k] tensors)."""
+    views, kept = MeasuredViews(), []
+    for field, (key, width) in MEASURED_FIELDS.items():
+        tensor = state[key].to(torch.float32)
+        tensor = tensor.reshape(num_envs, -1) if width == 0 else tensor.reshape(num_envs, width)
+        tensor = tensor.contiguous()
+        kept.append(tensor)
+        if width == 1:
+            setattr(views, field, wp.from_torch(tensor.view(num_envs)))
+        elif width == 3:
+            setattr(views, field, wp.from_torch(tensor, dtype=wp.vec3))
+        else:
+            setattr(views, field, wp.from_torch(tensor))
+    views.surface_min = wp.from_torch(surface_min, dtype=wp.vec3)
+    views.surface_max = wp.from_torch(surface_max, dtype=wp.vec3)
+    return views, kept
+
+
+def observe_kernel(name: str, observe: Any, buffers: type, constants: type, module: str) -> Any:
+    """``<name>_observe_kernel`` in the Warp module ``module`` of a task's ``@wp.func`` observe ``(f:
+    FlightState, buf: buffers, c: constants, observation [N, D], i)``: the observation of a given
+    (measured) state with the task's current buffers, no side effect; arguments ``(m: MeasuredViews,
+    buf, c, observation, offset)``."""
+
+    def kernel(m: MeasuredViews, buf: buffers, c: constants,  # type: ignore[valid-type]
+               observation: wp.array2d(dtype=wp.float32), offset: int):
+        i = wp.tid() + offset
+        saved = flush_denormals_begin()
+        observe(measured_flight_state(m, i), buf, c, observation, i)
+        flush_denormals_end(saved)
+
+    return wp.kernel(kernel, name=f"{name}_observe_kernel", module=module)
+
+
 def simulator_views(x: torch.Tensor, wind_ned: torch.Tensor, gust_velocity_body: torch.Tensor,
                     span: torch.Tensor, wing_quarter_chord: torch.Tensor, surface_min: torch.Tensor,
                     surface_max: torch.Tensor) -> Any:
@@ -191,5 +288,6 @@ def task_kernels(name: str, step: Any, start: Any, buffers: type, constants: typ
             wp.kernel(start_kernel, name=f"{name}_start_kernel", module=module))
 
 
-__all__ = ["FlightState", "SimulatorViews", "TaskStep", "flight_state", "normalised_surface",
+__all__ = ["MEASURED_FIELDS", "FlightState", "MeasuredViews", "SimulatorViews", "TaskStep", "flight_state",
+           "measured_flight_state", "measured_views", "normalised_surface", "observe_kernel",
            "simulator_views", "task_kernels"]

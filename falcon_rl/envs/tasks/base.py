@@ -268,6 +268,16 @@ class Task(ABC):
     def observe(self, state: TensorDictBase) -> torch.Tensor:
         """[N, D] observation, scaled and clipped to +-observation_clip."""
 
+    def observation_of(self, state: TensorDictBase, fused: bool = True) -> torch.Tensor:
+        """[N, D] the observation of ``state`` (e.g. a measured one: [N, 1] scalars or the simulator's
+        [N]) with the current buffers, without side effects: the fused step's observe kernel where the
+        task has one (the same code as its step's observation; ``fused=False``: never), else
+        :meth:`observe`."""
+        stepper = self.fused_stepper() if fused else None
+        if stepper is not None and stepper.observe_kernel is not None:
+            return stepper.observe(state).to(self.dtype)
+        return self.observe(state)
+
     def reward(self, state: TensorDictBase, action: torch.Tensor) -> torch.Tensor:
         """[N] reward of the transition that ended in ``state`` under ``action`` [N, A]: the sum of
         :meth:`reward_terms_of` in the order of :attr:`reward_terms` (each kept in

@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import torch
 import warp as wp
 
-from ...physics.task_kernels import FlightState, simulator_views
+from ...physics.task_kernels import FlightState, measured_views, simulator_views
 from .base import TERMINATION_CODE
 
 if TYPE_CHECKING:
@@ -202,6 +202,10 @@ class FusedStep:
     #: the rows in ``mask`` after their physics reset (the task's ``after_reset``) and writes every
     #: env's observation (its ``observe``); None: the task starts episodes in torch.
     start_kernel: ClassVar[Any] = None
+    #: A kernel ``(m: MeasuredViews, buf, c, observation [N, D], offset)`` (``physics.task_kernels.
+    #: observe_kernel``): the observation of a given (measured) state with the task's current buffers,
+    #: the task's ``observe``; None: the task observes a given state in torch.
+    observe_kernel: ClassVar[Any] = None
 
     def __init__(self, task: Task):
         self.task = task
@@ -267,6 +271,26 @@ class FusedStep:
                           device=engine.kernel_device, record_cmd=True)
                 for offset, count in engine.kernel_slices])
         self._key = self.binding_key()
+
+    def observe(self, state: Any) -> torch.Tensor:
+        """[N, D] float32 (a new tensor): the task's observation of ``state`` (a mapping of the state's
+        entries, [N], [N, 1] or [N, k], e.g. a measured state) with its current buffers, by
+        :attr:`observe_kernel`; nothing else is written."""
+        if self.observe_kernel is None:
+            raise RuntimeError(f"{type(self).__name__} has no observe kernel")
+        self.ensure_bound()
+        task, engine = self.task, self.task.sim.engine
+        views, kept = measured_views(state, task.num_envs, task.sim.params.surface_min,
+                                     task.sim.params.surface_max)
+        out = torch.empty(task.num_envs, task.observation_dim, device=task.device, dtype=torch.float32)
+        buf, constants = self._inputs[1], self._inputs[2]
+        target = wp.from_torch(out)
+        launches = [wp.launch(self.observe_kernel, dim=count, inputs=[views, buf, constants, target, offset],
+                              device=engine.kernel_device, record_cmd=True)
+                    for offset, count in engine.kernel_slices]
+        engine.replayer(launches)()
+        del kept  # the views' memory is needed until the launches ran
+        return out
 
     def draw(self) -> None:
         """Draw the step's random numbers into bound buffers (none by default)."""

@@ -33,6 +33,7 @@ from ....physics.task_kernels import (
     SimulatorViews,
     flight_state,
     normalised_surface,
+    observe_kernel,
     task_kernels,
 )
 from ..warp_common import (
@@ -265,10 +266,21 @@ def altitude_start(sim: SimulatorViews, buf: AltitudeBuffers, c: AltitudeConstan
     write_observation(f, c, e_h, buf.elevator_rate[i], buf.error_integral[i], ref[1], observation, i)
 
 
-#: The step kernel (:func:`altitude_step` of env i = offset + tid) and the start kernel
-#: (:func:`altitude_start`), in this module.
+@wp.func
+def altitude_observe(f: FlightState, buf: AltitudeBuffers, c: AltitudeConstants,
+                     observation: wp.array2d(dtype=wp.float32), i: int):
+    """The observation [N, D] of env i's flight state ``f`` (e.g. a measured one) with the task's current
+    buffers, no side effect (twin of ``AltitudeTask.observe``)."""
+    write_observation(f, c, f.height - buf.reference[i], buf.elevator_rate[i], buf.error_integral[i],
+                      buf.reference_rate[i], observation, i)
+
+
+#: The step kernel (:func:`altitude_step` of env i = offset + tid), the start kernel
+#: (:func:`altitude_start`) and the observe kernel (:func:`altitude_observe`), in this module.
 altitude_step_kernel, altitude_start_kernel = task_kernels(
     "altitude", altitude_step, altitude_start, AltitudeBuffers, AltitudeConstants, __name__)
+altitude_observe_kernel = observe_kernel("altitude", altitude_observe, AltitudeBuffers, AltitudeConstants,
+                                         __name__)
 
 
 def altitude_constants(task: Task) -> Any:
@@ -300,6 +312,7 @@ class FusedAltitudeStep(FusedStep):
     buffers = AltitudeBuffers
     constants = AltitudeConstants
     start_kernel = altitude_start_kernel
+    observe_kernel = altitude_observe_kernel
     task: Task
 
     def __init__(self, task: Task):

@@ -23,7 +23,7 @@ import warp as wp
 
 from ....constants import DEG
 from ....physics._warp import forward_only
-from ....physics.task_kernels import FlightState, SimulatorViews, flight_state, task_kernels
+from ....physics.task_kernels import FlightState, SimulatorViews, flight_state, observe_kernel, task_kernels
 from ..warp_common import (
     FusedStep,
     airspeed_margin_penalty_wp,
@@ -199,10 +199,20 @@ def attitude_start(sim: SimulatorViews, buf: AttitudeBuffers, c: AttitudeConstan
     write_observation(f, c, errors, buf.previous_action[i], observation, i)
 
 
-#: The step kernel (:func:`attitude_step` of env i = offset + tid) and the start kernel
-#: (:func:`attitude_start`), in this module.
+@wp.func
+def attitude_observe(f: FlightState, buf: AttitudeBuffers, c: AttitudeConstants,
+                     observation: wp.array2d(dtype=wp.float32), i: int):
+    """The observation [N, D] of env i's flight state ``f`` (e.g. a measured one) with the task's current
+    buffers, no side effect (twin of ``AttitudeTask.observe``)."""
+    write_observation(f, c, tracking_errors(f, buf.commanded[i]), buf.previous_action[i], observation, i)
+
+
+#: The step kernel (:func:`attitude_step` of env i = offset + tid), the start kernel
+#: (:func:`attitude_start`) and the observe kernel (:func:`attitude_observe`), in this module.
 attitude_step_kernel, attitude_start_kernel = task_kernels(
     "attitude", attitude_step, attitude_start, AttitudeBuffers, AttitudeConstants, __name__)
+attitude_observe_kernel = observe_kernel("attitude", attitude_observe, AttitudeBuffers, AttitudeConstants,
+                                         __name__)
 
 
 def attitude_constants(task: Task) -> Any:
@@ -246,6 +256,7 @@ class FusedAttitudeStep(FusedStep):
     buffers = AttitudeBuffers
     constants = AttitudeConstants
     start_kernel = attitude_start_kernel
+    observe_kernel = attitude_observe_kernel
     task: Task
 
     def __init__(self, task: Task):

@@ -20,7 +20,7 @@ import warp as wp
 
 from ....constants import DEG
 from ....physics._warp import forward_only
-from ....physics.task_kernels import FlightState, SimulatorViews, flight_state, task_kernels
+from ....physics.task_kernels import FlightState, SimulatorViews, flight_state, observe_kernel, task_kernels
 from ..warp_common import (
     FusedStep,
     airspeed_margin_penalty_wp,
@@ -159,11 +159,21 @@ def path_following_start(sim: SimulatorViews, buf: PathFollowingBuffers, c: Path
     write_observation(f, c, path_errors(f, buf, c, i), buf.previous_action[i], observation, i)
 
 
-#: The step kernel (:func:`path_following_step` of env i = offset + tid) and the start kernel
-#: (:func:`path_following_start`), in this module.
+@wp.func
+def path_following_observe(f: FlightState, buf: PathFollowingBuffers, c: PathFollowingConstants,
+                           observation: wp.array2d(dtype=wp.float32), i: int):
+    """The observation [N, D] of env i's flight state ``f`` (e.g. a measured one) with the task's current
+    buffers, no side effect (twin of ``PathFollowingTask.observe``)."""
+    write_observation(f, c, buf.errors[i], buf.previous_action[i], observation, i)
+
+
+#: The step kernel (:func:`path_following_step` of env i = offset + tid), the start kernel
+#: (:func:`path_following_start`) and the observe kernel (:func:`path_following_observe`), in this module.
 path_following_step_kernel, path_following_start_kernel = task_kernels(
     "path_following", path_following_step, path_following_start, PathFollowingBuffers,
     PathFollowingConstants, __name__)
+path_following_observe_kernel = observe_kernel("path_following", path_following_observe, PathFollowingBuffers,
+                                               PathFollowingConstants, __name__)
 
 
 class FusedPathFollowingStep(FusedStep):
@@ -175,6 +185,7 @@ class FusedPathFollowingStep(FusedStep):
     buffers = PathFollowingBuffers
     constants = PathFollowingConstants
     start_kernel = path_following_start_kernel
+    observe_kernel = path_following_observe_kernel
     task: Task
 
     def __init__(self, task: Task):

@@ -20,7 +20,7 @@ import warp as wp
 
 from ....constants import DEG
 from ....physics._warp import forward_only
-from ....physics.task_kernels import FlightState, SimulatorViews, flight_state, task_kernels
+from ....physics.task_kernels import FlightState, SimulatorViews, flight_state, observe_kernel, task_kernels
 from ..warp_common import (
     FusedStep,
     airspeed_margin_penalty_wp,
@@ -178,10 +178,21 @@ def trajectory_start(sim: SimulatorViews, buf: TrajectoryBuffers, c: TrajectoryC
                       observation, i)
 
 
-#: The step kernel (:func:`trajectory_step` of env i = offset + tid) and the start kernel
-#: (:func:`trajectory_start`), in this module.
+@wp.func
+def trajectory_observe(f: FlightState, buf: TrajectoryBuffers, c: TrajectoryConstants,
+                       observation: wp.array2d(dtype=wp.float32), i: int):
+    """The observation [N, D] of env i's flight state ``f`` (e.g. a measured one) with the task's current
+    buffers, no side effect (twin of ``TrajectoryTask.observe``)."""
+    write_observation(f, c, buf.position_error[i], buf.velocity_error[i], buf.previous_action[i],
+                      observation, i)
+
+
+#: The step kernel (:func:`trajectory_step` of env i = offset + tid), the start kernel
+#: (:func:`trajectory_start`) and the observe kernel (:func:`trajectory_observe`), in this module.
 trajectory_step_kernel, trajectory_start_kernel = task_kernels(
     "trajectory", trajectory_step, trajectory_start, TrajectoryBuffers, TrajectoryConstants, __name__)
+trajectory_observe_kernel = observe_kernel("trajectory", trajectory_observe, TrajectoryBuffers,
+                                           TrajectoryConstants, __name__)
 
 
 class FusedTrajectoryStep(FusedStep):
@@ -193,6 +204,7 @@ class FusedTrajectoryStep(FusedStep):
     buffers = TrajectoryBuffers
     constants = TrajectoryConstants
     start_kernel = trajectory_start_kernel
+    observe_kernel = trajectory_observe_kernel
     task: Task
 
     def __init__(self, task: Task):
