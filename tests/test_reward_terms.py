@@ -84,3 +84,19 @@ def test_the_recipes_log_each_reward_term(tmp_path) -> None:
     assert set(logged) == set(EXPECTED["altitude"]), sorted(logged)
     rows = list(csv.reader(logged["survival"].open()))
     assert rows and float(rows[-1][-1]) == pytest.approx(cfg.env_options.get("survival_bonus", 1.0))
+
+
+def test_the_full_env_publishes_each_term_beside_the_reward() -> None:
+    from torchrl.envs.utils import check_env_specs
+
+    env = make_env("attitude", "volantex_ranger", num_envs=3, seed=4)
+    check_env_specs(env, seed=0)
+    td = env.reset()
+    assert set(td["reward_terms"].keys()) == set(EXPECTED["attitude"])
+    assert all(not value.any() for value in td["reward_terms"].values())  # a reset has no transition
+    rollout = env.rollout(6)
+    terms = rollout["next", "reward_terms"]
+    assert terms[EXPECTED["attitude"][0]].shape == (3, 6, 1)
+    total = sum(terms[name] for name in EXPECTED["attitude"])
+    torch.testing.assert_close(total, rollout["next", "reward"], **TOL)
+    assert "reward_terms" not in make_env("attitude", num_envs=1, lean=True).reset().keys()  # noqa: SIM118

@@ -11,6 +11,8 @@ and done, so that ``CatTensors``, ``ExcludeTransform`` and replay buffers take t
     ("state", name)          true simulator state (height [N, 1], euler [N, 3], ...): for metrics and
                              privileged critics; sensors and delays act on "observation" only
     ("task", name)           the task's references and tracking errors ([N, 1] or [N, k])
+    ("reward_terms", name)   [N, 1] each named term of the reward (``Task.reward_terms``: weighted and
+                             signed, they sum to "reward"); zero in a reset's output
     termination_reason       [N, 1] long, index in ``TERMINATION_REASONS`` ("none", "ground_contact",
                              "alpha_stall", "speed_stall", "lost", "non_finite") of why the env
                              terminated this step, 0 while flying
@@ -239,7 +241,9 @@ class FixedWingEnv(EnvBase):
                                            device=dev),
             shape=(n,), device=dev)
         if not self.config.lean:
-            for group in ("state", "task"):
+            for group in ("state", "task", "reward_terms"):
+                if group not in sample.keys():  # noqa: SIM118 (a TensorDict iterates its rows)
+                    continue
                 spec[group] = Composite({key: leaf(value) for key, value in sample[group].items()},
                                         shape=(n,), device=dev)
         self.observation_spec = spec
@@ -400,6 +404,11 @@ class FixedWingEnv(EnvBase):
                                                   batch_size=batch, device=device)
             task = {key: column(value) for key, value in self.task.info().items()}
             out["task"] = TensorDict._new_unsafe(task, batch_size=batch, device=device)
+            if self.task.reward_terms:  # the transition's terms; zero in a reset's output
+                values = self.task.reward_term_values
+                values = values.clone() if reward is not None else torch.zeros_like(values)
+                terms = dict(zip(self.task.reward_terms, values.unsqueeze(-1).unbind(1), strict=True))
+                out["reward_terms"] = TensorDict._new_unsafe(terms, batch_size=batch, device=device)
         if reward is not None:
             out["reward"] = reward
         # Every entry is an [N, ...] tensor of the env's device by construction (the simulator's state,
