@@ -334,7 +334,7 @@ class FixedWingEnv(EnvBase):
         self.task.reward_term_steps += 1
         observation, reward, reason, truncated, non_finite = stepper(action, with_state)
         state = stepper.state
-        if stepper.state is None and (copy or (with_state and not self.config.lean)):
+        if stepper.reuses_buffers and (copy or (with_state and not self.config.lean)):
             observation, reward, reason = observation.clone(), reward.clone(), reason.clone()
             truncated, non_finite = truncated.clone(), non_finite.clone()
         if with_state and not self.config.lean and state is None:  # the derived state is checked too

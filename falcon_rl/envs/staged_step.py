@@ -31,6 +31,9 @@ class StagedEnvStep:
     is the simulator state the task read (a TensorDict), or None where the task's fused step read the
     simulator's buffers and no state was asked for."""
 
+    #: Its outputs are new tensors each call (no copy needed to keep them).
+    reuses_buffers = False
+
     def __init__(self, env: Any):
         """``env``: the ``FixedWingEnv`` it steps (its config, simulator, task, step counter, horizon and
         ``non_finite_reason``; the names ``physics.fused_env_step.SteppedEnv`` lists)."""

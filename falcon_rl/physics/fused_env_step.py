@@ -288,6 +288,8 @@ class FusedEnvStep:
     #: The state of the last step as a TensorDict: None, the kernel builds none (the env's staged step,
     #: ``envs.staged_step.StagedEnvStep``, is called alike and may have one).
     state = None
+    #: Its outputs are its buffers, overwritten by the next call (a caller that keeps them copies them).
+    reuses_buffers = True
 
     def __call__(self, action: torch.Tensor, with_state: bool = True) -> tuple[torch.Tensor, ...]:
         """(observation [N, D], reward [N], reason [N] long, truncated [N], non_finite [N]) of the step

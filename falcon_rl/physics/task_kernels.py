@@ -36,7 +36,8 @@ from .state import (
 from .warp_kernels import flush_denormals_begin, flush_denormals_end
 
 POSITION_START = wp.constant(DOWN_INDEX - 2)
-_VECTOR = {2: wp.vec2, 3: wp.vec3, 4: wp.vec4}
+#: The Warp vector type of a trailing width (a [N, k] float32 tensor viewed as an array of vec k).
+WARP_VECTORS = {2: wp.vec2, 3: wp.vec3, 4: wp.vec4}
 
 
 class TaskStep(Protocol):
@@ -256,7 +257,7 @@ def simulator_views(x: torch.Tensor, wind_ned: torch.Tensor, gust_velocity_body:
     for name, tensor in (("wind_ned", wind_ned), ("gust_velocity_body", gust_velocity_body),
                          ("wing_quarter_chord", wing_quarter_chord), ("surface_min", surface_min),
                          ("surface_max", surface_max)):
-        setattr(views, name, wp.from_torch(tensor, dtype=_VECTOR[tensor.shape[1]]))
+        setattr(views, name, wp.from_torch(tensor, dtype=WARP_VECTORS[tensor.shape[1]]))
     views.span = wp.from_torch(span)
     return views
 
@@ -288,6 +289,6 @@ def task_kernels(name: str, step: Any, start: Any, buffers: type, constants: typ
             wp.kernel(start_kernel, name=f"{name}_start_kernel", module=module))
 
 
-__all__ = ["MEASURED_FIELDS", "FlightState", "MeasuredViews", "SimulatorViews", "TaskStep", "flight_state",
-           "measured_flight_state", "measured_views", "normalised_surface", "observe_kernel",
+__all__ = ["MEASURED_FIELDS", "WARP_VECTORS", "FlightState", "MeasuredViews", "SimulatorViews", "TaskStep",
+           "flight_state", "measured_flight_state", "measured_views", "normalised_surface", "observe_kernel",
            "simulator_views", "task_kernels"]

@@ -101,12 +101,22 @@ class TorchEngine(Engine):
         """Replays ``launches`` in order, on torch's current CUDA stream on a GPU."""
         device = self.setup.device
         if device.type != "cuda":
-            return lambda: [launch.launch() for launch in launches] and None
+            if len(launches) == 1:
+                return launches[0].launch
+
+            def replay_cpu() -> None:
+                for launch in launches:
+                    launch.launch()
+
+            return replay_cpu
+        streams: dict[int, Any] = {}  # torch's stream handle -> its Warp view, made once
 
         def replay() -> None:
-            stream = init_warp().stream_from_torch(device)
+            handle = torch.cuda.current_stream(device).cuda_stream
+            if handle not in streams:
+                streams[handle] = init_warp().stream_from_torch(device)
             for launch in launches:
-                launch.launch(stream=stream)
+                launch.launch(stream=streams[handle])
 
         return replay
 

@@ -20,6 +20,7 @@ kernel (``FusedStep.start_kernel``: ``after_reset`` and ``observe`` after the ph
 
 from __future__ import annotations
 
+import functools
 import math
 import warnings
 from collections.abc import Callable
@@ -28,7 +29,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import torch
 import warp as wp
 
-from ...physics.task_kernels import FlightState, measured_views, simulator_views
+from ...physics.task_kernels import WARP_VECTORS, FlightState, measured_views, simulator_views
 from .base import TERMINATION_CODE
 
 if TYPE_CHECKING:
@@ -146,16 +147,13 @@ def clip(v: float, limit: float) -> float:
     return clamp_keep_nan(v, -limit, limit)
 
 
-_VECTOR = {2: wp.vec2, 3: wp.vec3, 4: wp.vec4}
-
-
 def warp_view(tensor: torch.Tensor) -> Any:
     """Zero-copy Warp view of a task tensor: [N] float32 or int64 as is, [N, k] (k = 2, 3, 4) float32 as
     an array of vec k."""
     if tensor.dtype == torch.long:
         return wp.from_torch(tensor, dtype=wp.int64)
     if tensor.dim() == 2:
-        return wp.from_torch(tensor, dtype=_VECTOR[tensor.shape[1]])
+        return wp.from_torch(tensor, dtype=WARP_VECTORS[tensor.shape[1]])
     return wp.from_torch(tensor)
 
 
@@ -175,7 +173,7 @@ def fill_struct(struct: Any, values: dict[str, Any]) -> Any:
         if isinstance(value, torch.Tensor):
             value = warp_view(value)
         elif isinstance(value, (tuple, list)):
-            value = _VECTOR[len(value)](*(float(v) for v in value))
+            value = WARP_VECTORS[len(value)](*(float(v) for v in value))
         elif not isinstance(value, (bool, int)):
             value = float(value)
         setattr(struct, name, value)
@@ -324,6 +322,13 @@ class FusedStep:
 _WARNED_UNFUSED: set[type] = set()
 
 
+@functools.cache
+def _overridden(cls: type, owner: type, methods: tuple[str, ...]) -> tuple[str, ...]:
+    """The ``methods`` of ``owner`` that ``cls`` overrides (once per class: the staged step asks every
+    step)."""
+    return tuple(name for name in methods if getattr(cls, name) is not getattr(owner, name))
+
+
 def fused_stepper(task: Task, owner: type, methods: tuple[str, ...], factory: type[FusedStep]
                   ) -> FusedStep | None:
     """The shared body of a task's ``fused_stepper``: None when the simulator's engine runs no task
@@ -333,7 +338,7 @@ def fused_stepper(task: Task, owner: type, methods: tuple[str, ...], factory: ty
     ``task._fused`` (its ``owner`` set: ``Task.fused_starter`` checks ``after_reset`` against it)."""
     if not task.sim.engine.runs_task_kernels:
         return None
-    overridden = [name for name in methods if getattr(type(task), name) is not getattr(owner, name)]
+    overridden = _overridden(type(task), owner, methods)
     if overridden:
         if type(task) not in _WARNED_UNFUSED:
             _WARNED_UNFUSED.add(type(task))
