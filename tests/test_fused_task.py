@@ -1,8 +1,9 @@
-"""The altitude task's fused Warp step (``AltitudeTask.fused_step``) against its torch reference
-(``Task.step`` on ``Simulator.state``): same observations, rewards, done flags, termination reasons,
-("task", ...) and ("state", ...) entries over rollouts with auto-resets, on several airframes,
-decimations, turbulence and wind (on CUDA too, skipped without a GPU); the lean fused env against the
-full one; crafted crashes; the fallbacks; pickling and re-binding after a parameter tensor is replaced."""
+"""Every task's Warp step (its one body, ``Task.fused_stepper``) against an independent torch reference
+of the task's equations (``tests/task_references.py``, ``Task.torch_step`` on ``Simulator.state``): same
+observations, rewards, done flags, termination reasons, ("task", ...) and ("state", ...) entries over
+rollouts with auto-resets, on several airframes, decimations, turbulence and wind (on CUDA too, skipped
+without a GPU); the lean env against the full one; crafted crashes; float64 envs; what a task with a Warp
+step refuses; pickling and re-binding after a parameter tensor is replaced."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ import pickle
 
 import pytest
 import torch
+from task_references import torch_reference
 from tensordict import TensorDictBase
 from torchrl.envs import EnvBase
 
@@ -50,8 +52,10 @@ class HeldRandomPolicy:
 
 
 def altitude_env(airframe: str = "navion", fused: bool = True, **options) -> EnvBase:
+    """An altitude env on the warp engine: its Warp step, or (``fused=False``) the torch reference."""
     options = {"num_envs": N, "seed": 3, "wind": WIND, "episode_seconds": 4.0, **options}
-    return make_env("altitude", airframe, backend="warp", fused=fused, **options)
+    env = make_env("altitude", airframe, backend="warp", **options)
+    return env if fused else torch_reference(env)
 
 
 def roll(env: EnvBase, steps: int, hold_seconds: float = 2.0) -> TensorDictBase:
@@ -120,8 +124,8 @@ def test_target_sequence_draws_and_releases_as_the_torch_step():
 
 
 def test_climb_descend_task_is_fused_too():
-    runs = {fused: roll(make_env("climb_descend", "navion", num_envs=N, seed=5, fused=fused,
-                                 episode_seconds=4.0), 120) for fused in (False, True)}
+    runs = {fused: roll(task_env("climb_descend", fused=fused, seed=5, wind=None), 120)
+            for fused in (False, True)}
     assert_same_rollout(runs[False], runs[True])
 
 
@@ -165,18 +169,42 @@ def test_crafted_crashes_give_the_same_reasons(lean):
         assert not value.is_floating_point() or torch.isfinite(value).all()
 
 
-def test_fused_step_falls_back_in_float64_and_for_a_changed_step():
-    reference = make_env("altitude", "navion", num_envs=2, backend="torch", seed=0, dtype=torch.float64)
-    assert reference.task.fused_step(torch.zeros(2, 2, dtype=torch.float64)) is None
+@pytest.mark.parametrize("task", ["altitude", "attitude", "path_following", "trajectory", "climb_descend"])
+def test_a_float64_env_runs_the_warp_step_on_float32_copies(task):
+    """A float64 env (torch engine) steps its task with the same Warp body, on float32 copies of the state:
+    its rollout is the float64 torch reference's to float32 precision, in float64 entries."""
+    def env(fused: bool) -> EnvBase:
+        made = make_env(task, "volantex_ranger", num_envs=N, backend="torch", seed=3, wind=WIND,
+                        episode_seconds=3.0, dtype=torch.float64)
+        return made if fused else torch_reference(made)
 
+    envs = {fused: env(fused) for fused in (False, True)}
+    assert envs[True].task.buffer_dtype == torch.float32 and envs[False].task.buffer_dtype == torch.float64
+    runs = {fused: roll(made, 90, hold_seconds=1.0) for fused, made in envs.items()}
+    assert runs[True]["next", "observation"].dtype == torch.float64
+    assert runs[True]["next", "reward"].dtype == torch.float64
+    assert int(runs[True]["next", "done"].sum()) > 0
+    for key in runs[False].keys(True, True):
+        a, b = runs[False][key], runs[True][key]
+        if a.is_floating_point():  # float32 task arithmetic against float64
+            torch.testing.assert_close(b, a, rtol=1e-4, atol=2e-3 if "position" in str(key) else 1e-4,
+                                       msg=lambda m, key=key: f"{key}: {m}")
+        else:
+            assert torch.equal(a, b), key
+
+
+def test_a_task_with_a_warp_step_refuses_torch_step_methods():
+    """A subclass that would change a built-in task's reward (or any part of its step) in torch is refused
+    when built: its Warp step would never run the change."""
     class Changed(AltitudeTask):
         def reward(self, state, action):
             return super().reward(state, action) + 1.0
 
-    warp_env = altitude_env("navion")
-    assert warp_env.task.fused_step(torch.zeros(N, 2)) is not None
-    warp_env.task.__class__ = Changed
-    assert warp_env.task.fused_step(torch.zeros(N, 2)) is None
+    env = altitude_env("navion")
+    with pytest.raises(TypeError, match=r"Changed defines reward, but its step is its Warp functions"):
+        Changed(env.task.config, env.sim, env.generator, env.control_dt)
+    with pytest.raises(TypeError, match=r"call step\(action\)"):
+        env.task.torch_step(env.sim.state, torch.zeros(N, 2))
 
 
 def test_pickled_fused_env_continues_the_same_stream():
@@ -251,8 +279,10 @@ POSITION_ATOL = {"reference_position": 1e-3, "position_error_ned": 1e-3, "positi
 
 
 def task_env(task: str, airframe: str = "navion", fused: bool = True, **options) -> EnvBase:
+    """A ``task`` env on the warp engine: its Warp step, or (``fused=False``) the torch reference."""
     options = {"num_envs": N, "seed": 3, "wind": WIND, "episode_seconds": 4.0, **options}
-    return make_env(task, airframe, backend="warp", fused=fused, **options)
+    env = make_env(task, airframe, backend="warp", **options)
+    return env if fused else torch_reference(env)
 
 
 def assert_close_entries(expected: TensorDictBase, actual: TensorDictBase, keys: list | None = None) -> None:
@@ -369,13 +399,13 @@ def test_every_registered_task_has_a_fused_warp_step():
     names = [name for name, spec in TASK_SPECS.items() if spec.task.__module__.startswith("falcon_rl.envs.")]
     assert {"altitude", "climb_descend", "attitude", "path_following", "trajectory"} <= set(names)
     for name in names:
-        env = make_env(name, "navion", num_envs=2, backend="warp", seed=0)
-        action = torch.zeros(2, env.task.action_dim)
-        assert env.task.fused_step(action) is not None, name
-        torch_env = make_env(name, "navion", num_envs=2, backend="torch", seed=0)  # the same kernel
-        assert torch_env.task.fused_step(action) is not None, name
-        reference = make_env(name, "navion", num_envs=2, backend="torch", seed=0, dtype=torch.float64)
-        assert reference.task.fused_step(action.double()) is None, name
+        assert TASK_SPECS[name].task.has_warp_step(), name
+        for backend, dtype in (("warp", torch.float32), ("torch", torch.float32), ("torch", torch.float64)):
+            env = make_env(name, "navion", num_envs=2, backend=backend, seed=0, dtype=dtype)
+            action = torch.zeros(2, env.task.action_dim, dtype=dtype)
+            assert env.task.fused_stepper() is not None, name
+            observation, reward, reason = env.task.step(action)
+            assert observation.shape == (2, env.task.observation_dim) and reward.shape == reason.shape == (2,)
 
 
 CUDA = pytest.param("cuda", marks=pytest.mark.skipif(not warp_cuda_available(), reason="needs CUDA"))
@@ -385,34 +415,37 @@ CUDA = pytest.param("cuda", marks=pytest.mark.skipif(not warp_cuda_available(), 
 @pytest.mark.parametrize("task", ["altitude", "attitude", "path_following", "trajectory", "climb_descend"])
 def test_on_the_torch_engine_the_fused_step_matches_the_torch_step(task, device):
     """The torch engine runs the task's Warp step after its torch physics (on torch's stream on a GPU):
-    the same rollout as the task's torch step on the same engine, auto-resets and terminations
+    the same rollout as the task's torch reference on the same engine, auto-resets and terminations
     included."""
     envs = {fused: make_env(task, "volantex_ranger", num_envs=N, backend="torch", seed=3, wind=WIND,
-                            episode_seconds=3.0, fused=fused, device=device) for fused in (False, True)}
-    assert envs[True].task.fused_stepper() is not None and envs[False].task.fused_stepper() is not None
+                            episode_seconds=3.0, device=device) for fused in (False, True)}
+    torch_reference(envs[False])
+    assert envs[True].task.fused_stepper() is not None and envs[False].task.fused_stepper() is None
     rollouts = {fused: roll(env, 90, hold_seconds=1.0) for fused, env in envs.items()}
     assert int(rollouts[True]["next", "done"].sum()) > 0
     assert_same_rollout(rollouts[False], rollouts[True])
 
 
-def test_other_tasks_fall_back_for_a_changed_step_or_stream():
+def test_other_tasks_refuse_a_changed_step_or_stream():
     from falcon_rl.envs.maneuvers import RandomCommandStream
     from falcon_rl.envs.tasks import AttitudeTask, TrajectoryTask
 
     class Changed(TrajectoryTask):
-        def advance_reference(self) -> None:
-            super().advance_reference()
+        def observe(self, state):
+            return super().observe(state)
 
     class Stream(RandomCommandStream):
         pass
 
     env = task_env("trajectory")
-    env.task.__class__ = Changed
-    assert env.task.fused_step(torch.zeros(N, 4)) is None
+    with pytest.raises(TypeError, match="Changed defines observe"):
+        Changed(env.task.config, env.sim, env.generator, env.control_dt)
     env = task_env("attitude")
     assert isinstance(env.task, AttitudeTask) and env.task.random_stream is not None
     env.task.random_stream.__class__ = Stream
-    assert env.task.fused_step(torch.zeros(N, 4)) is None
+    env.task._fused = None
+    with pytest.raises(TypeError, match="RandomCommandStream process; a Stream cannot be stepped"):
+        env.task.fused_stepper()
 
 
 def test_pickled_fused_attitude_env_continues_the_same_stream():

@@ -402,7 +402,8 @@ class XPlaneBridge:
                 last_time = values[P.TIME]
                 self._write_state(values)
                 state = sim.state
-                observation, reward, reasons = task.step(state, action)
+                observation, reward, reasons = task.step(action)  # on the state X-Plane flew to
+                observation = observation.to(sim.dtype, copy=True)
                 reason = int(reasons[0])
                 truncated = step + 1 >= env.max_episode_steps
                 td = self._output(observation, state, reason, truncated)

@@ -105,7 +105,8 @@ class FixedWingEnvConfig:
     integrator: str = "rk4"
     #: True / "induced", "paper" or False.
     ground_effect: bool | str = True
-    #: Floating dtype of the simulation and of every float entry (torch.float32 or torch.float64).
+    #: Floating dtype of the simulation and of every float entry (torch.float32 or torch.float64; a
+    #: float64 env's task step reads float32 copies of the state and its outputs are cast to float64).
     dtype: torch.dtype = torch.float32
     #: Torch backend: step through torch.compile (see ``Simulator``).
     compile: bool = False
@@ -113,8 +114,9 @@ class FixedWingEnvConfig:
     warp_cpu_threads: int | None = None
     #: Publish only observation, termination_reason, reward and done flags (lean replay buffers).
     lean: bool = False
-    #: Use the task's backend-fused step where it has one (``Task.fused_step``); False: always the
-    #: torch reference (``Task.step`` on ``Simulator.state``).
+    #: Run the task's Warp step inside the engine's one-call env step where the engine has one (the
+    #: warp engine: one launch, ``Engine.fuse``); False: the engine's step, then the task's as its own
+    #: launch (the same body and outputs, the staged step).
     fused: bool = True
     #: Steady wind in NED, m/s.
     wind: tuple[float, float, float] | None = None
@@ -285,25 +287,24 @@ class FixedWingEnv(EnvBase):
                       ) -> tuple[torch.Tensor, TensorDictBase | None]:
         """Reset the rows of ``mask`` ([N] or [N, 1] bool; all when None) without TensorDicts in or out
         (the core of ``reset``, for the Gymnasium paths): (observation [N, D], simulator state). With
-        ``with_state=False`` the state is None when the task starts episodes in a fused launch
-        (``Task.fused_starter``), which reads the simulator's buffers: the state is then not built."""
+        ``with_state=False`` the state is None when the task starts episodes with its Warp step's start
+        kernel, which reads the simulator's buffers: the state is then not built."""
         n = self.config.num_envs
         mask = (torch.ones(n, dtype=torch.bool, device=self.device) if mask is None
                 else mask.reshape(n).to(self.device, torch.bool))
         initial = self.task.sample_initial(mask)
-        starter = self.task.fused_starter() if self.config.fused else None  # asked once per reset
-        publish = with_state or starter is None
+        publish = with_state or not self.task.has_warp_step()
         state = self.sim.reset(initial, mask=mask, publish=publish)
         if publish and not isinstance(state, TensorDictBase):  # a facade whose reset returns nothing
             state = self.sim.state
         self.step_count.masked_fill_(mask, 0)
-        return self.task.start_episodes(state, mask, starter), state
+        return self.task.start_episodes(mask, state), state
 
     def observe(self, state: TensorDictBase) -> torch.Tensor:
         """[N, D] observation the task makes of ``state`` (fields as under ("state", ...), e.g. a
         measured one; [N, 1] scalars or the simulator's [N]) with its current buffers, without side
         effects (the sensor transform's hook)."""
-        return self.task.observation_of(simulator_layout(state, self.config.num_envs), self.config.fused)
+        return self.task.observe(simulator_layout(state, self.config.num_envs))
 
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
         action = tensordict.get("action", None)
@@ -406,7 +407,9 @@ class FixedWingEnv(EnvBase):
             out["task"] = TensorDict._new_unsafe(task, batch_size=batch, device=device)
             if self.task.reward_terms:  # the transition's terms; zero in a reset's output
                 values = self.task.reward_term_values
-                values = values.clone() if reward is not None else torch.zeros_like(values)
+                dtype = self.sim.dtype  # a float64 env's terms come from its float32 task step
+                values = (values.to(dtype, copy=True) if reward is not None
+                          else torch.zeros_like(values, dtype=dtype))
                 terms = dict(zip(self.task.reward_terms, values.unsqueeze(-1).unbind(1), strict=True))
                 out["reward_terms"] = TensorDict._new_unsafe(terms, batch_size=batch, device=device)
         if reward is not None:

@@ -100,7 +100,11 @@ def maneuver_stream(name: str, airframe: Airframe, dt: float) -> torch.Tensor:
 
 
 class RandomCommandStream:
-    """Vectorised random (phi*, hdot*, V_a*) streams for training, one per env. Shapes [N, 3]."""
+    """Vectorised random (phi*, hdot*, V_a*) streams for training, one per env. Shapes [N, 3].
+
+    Its state (command, target, timer) and its draws at a reset live here; its step (the timer runs
+    down by dt, an expired target and hold are redrawn from 4 uniforms, the command slews toward the
+    target at ``rate``) is the attitude task's Warp function ``random_stream_step``."""
 
     def __init__(self, airframe: Airframe, num_envs: int, generator: torch.Generator, dt: float,
                  device: torch.device, dtype: torch.dtype = torch.float32,
@@ -120,8 +124,11 @@ class RandomCommandStream:
         self.timer = torch.zeros(num_envs, **kw)
 
     def _draw(self) -> tuple[torch.Tensor, torch.Tensor]:
+        """(target [N, 3], hold time [N]) from 4 float32 uniforms per env (float32 whatever the stream's
+        dtype: the task's Warp step draws the same)."""
         n = self.command.shape[0]
-        u = torch.rand(n, 4, generator=self.generator, device=self.command.device, dtype=self.command.dtype)
+        u = torch.rand(n, 4, generator=self.generator, device=self.command.device, dtype=torch.float32)
+        u = u.to(self.command.dtype)
         target = self.low + (self.high - self.low) * u[:, :3]
         lo, hi = self.hold_seconds
         return target, lo + (hi - lo) * u[:, 3]
@@ -132,14 +139,3 @@ class RandomCommandStream:
         self.command.copy_(torch.where(mask[:, None], self.level, self.command))
         self.target.copy_(torch.where(mask[:, None], target, self.target))
         self.timer.copy_(torch.where(mask, timer, self.timer))
-
-    def step(self) -> torch.Tensor:
-        """Advance by dt; returns the current command [N, 3] (a view, do not keep)."""
-        self.timer -= self.dt
-        expired = self.timer <= 0.0
-        target, timer = self._draw()
-        self.target.copy_(torch.where(expired[:, None], target, self.target))
-        self.timer.copy_(torch.where(expired, timer, self.timer))
-        step = (self.target - self.command).clamp(-self.rate * self.dt, self.rate * self.dt)
-        self.command += step
-        return self.command

@@ -1,14 +1,15 @@
-"""The env step as stages, for engines without a one-call step (``Engine.fuse`` returns None) and tasks
-without a fused step: the twin of ``physics.fused_env_step.FusedEnvStep``, with the same call and the
-same outputs, so that ``FixedWingEnv`` steps every backend and task through one path.
+"""The env step as stages, for engines without a one-call step (``Engine.fuse`` returns None), envs
+built with ``fused=False`` and torch tasks: the twin of ``physics.fused_env_step.FusedEnvStep``, with
+the same call and the same outputs, so that ``FixedWingEnv`` steps every backend and task through one
+path.
 
 Stages, in the order the fused kernel runs them:
 
 1. the action contract (``transforms.action_check.check_action``): refused unless an [N, A] real float
    tensor; a row with a NaN flies the centre command and is flagged; the rest is clamped to [-1, 1];
 2. the task's command and the engine's ``step`` (the physics sub-steps and the crash state);
-3. the task's step: its fused step where the engine runs task kernels (``Task.fused_step``), else its
-   torch ``step`` on the simulator's state;
+3. the task's step (``Task.step``): its Warp step, or a torch task's ``torch_step`` on the simulator's
+   state;
 4. the non-finite guard: a row whose state (integrated and derived), observation or reward left the
    finite numbers, or whose action had a NaN, ends with reason "non_finite", its non-finite outputs
    zeroed;
@@ -28,7 +29,7 @@ from ..transforms.action_check import check_action
 class StagedEnvStep:
     """One env step as the stages of the module docstring. A call returns (observation [N, D], reward
     [N], reason [N] long, truncated [N] bool, non_finite [N] bool), new tensors each call; :attr:`state`
-    is the simulator state the task read (a TensorDict), or None where the task's fused step read the
+    is the simulator state after the step (a TensorDict), or None where the task's Warp step read the
     simulator's buffers and no state was asked for."""
 
     #: Its outputs are new tensors each call (no copy needed to keep them).
@@ -46,16 +47,16 @@ class StagedEnvStep:
         task, sim, n = env.task, env.sim, env.config.num_envs
         action, nan_action = check_action(action, n, task.action_dim, sim.dtype, env.device)
         sim.step(task.command(action), substeps=env.config.decimation)
-        fused = task.fused_step(action) if env.config.fused else None
-        if fused is None:
-            state = sim.state
-            observation, reward, reason = task.step(state, action)
-            finite = finite_step_rows(state, observation, reward)
-        else:
-            observation, reward, reason = fused
+        if task.has_warp_step():
+            observation, reward, reason = task.step(action)
+            observation, reward = observation.to(sim.dtype), reward.to(sim.dtype)
             state = sim.state if with_state and not env.config.lean else None
             finite = (finite_step_rows(state, observation, reward) if state is not None
                       else self._finite_buffers(observation, reward))
+        else:
+            state = sim.state
+            observation, reward, reason = task.torch_step(state, action)
+            finite = finite_step_rows(state, observation, reward)
         self.state = state
         env.step_count += 1
         truncated = env.step_count >= env.max_episode_steps

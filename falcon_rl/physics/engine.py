@@ -8,7 +8,7 @@
 
 Capabilities (an engine that has them says so; code above the physics asks, never names a backend):
 
-    engine.runs_task_kernels                   # runs a task's Warp kernels over its (float32) buffers
+    engine.runs_task_kernels                   # runs a task's Warp kernels over its buffers
     engine.kernel_slices, engine.kernel_device # where: (offset, count) slices of the batch, Warp device
     engine.replayer(launches)                  # a call that replays recorded launches as its own
     engine.fuse(task_step, env)                # the env's whole step as one call (or None)
@@ -247,9 +247,9 @@ class Engine(ABC):
     @property
     def runs_task_kernels(self) -> bool:
         """Whether a task's Warp kernels run over this engine's buffers: the capability
-        (:attr:`RUNS_TASK_KERNELS`), with float32 buffers on a CPU or CUDA device."""
-        return (self.RUNS_TASK_KERNELS and self.setup.dtype == torch.float32
-                and self.setup.device.type in ("cpu", "cuda"))
+        (:attr:`RUNS_TASK_KERNELS`), with buffers on a CPU or CUDA device (a task step reads float64
+        buffers through float32 copies)."""
+        return self.RUNS_TASK_KERNELS and self.setup.device.type in ("cpu", "cuda")
 
     @property
     def kernel_slices(self) -> list[tuple[int, int]]:

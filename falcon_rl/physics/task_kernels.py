@@ -23,6 +23,7 @@ from typing import Any, Protocol
 import torch
 import warp as wp
 
+from ._warp import init_warp
 from .dynamics import air_data_wp
 from .rotations import quaternion_to_euler_wp, rotation_matrix_wp
 from .state import (
@@ -45,10 +46,8 @@ class TaskStep(Protocol):
     right after the physics, it returns (observation [N, D], reward [N], reason [N] long), its buffers;
     :meth:`start` starts the episodes of a reset (given a ``start_kernel``). The engine's one-launch env
     step (``Engine.fuse``) calls its ``@wp.func`` (``kernel_func``) inside its own kernel, with the
-    structs of its ``buf`` and ``c`` arguments (``buffers``, ``constants``) and its bound inputs.
-    ``owner`` is the task class whose methods it twins."""
+    structs of its ``buf`` and ``c`` arguments (``buffers``, ``constants``) and its bound inputs."""
 
-    owner: type
     kernel_func: Any
     start_kernel: Any
     observe_kernel: Any
@@ -213,7 +212,9 @@ MEASURED_FIELDS: dict[str, tuple[str, int]] = {
 def measured_views(state: Any, num_envs: int, surface_min: torch.Tensor, surface_max: torch.Tensor
                    ) -> tuple[Any, list[torch.Tensor]]:
     """(:class:`MeasuredViews`, the float32 contiguous tensors it views: keep them alive until the
-    launch ran) of the entries of ``state`` (a mapping of [N], [N, 1] or [N, k] tensors)."""
+    launch ran) of the entries of ``state`` (a mapping of [N], [N, 1] or [N, k] tensors) and the surface
+    limits [N, 3] (any float dtype)."""
+    init_warp()  # an engine that is not Warp's own may run the first task kernel of the process
     views, kept = MeasuredViews(), []
     for field, (key, width) in MEASURED_FIELDS.items():
         tensor = state[key].to(torch.float32)
@@ -226,8 +227,10 @@ def measured_views(state: Any, num_envs: int, surface_min: torch.Tensor, surface
             setattr(views, field, wp.from_torch(tensor, dtype=wp.vec3))
         else:
             setattr(views, field, wp.from_torch(tensor))
-    views.surface_min = wp.from_torch(surface_min, dtype=wp.vec3)
-    views.surface_max = wp.from_torch(surface_max, dtype=wp.vec3)
+    for field, limit in (("surface_min", surface_min), ("surface_max", surface_max)):
+        limit = limit.to(torch.float32).contiguous()
+        kept.append(limit)
+        setattr(views, field, wp.from_torch(limit, dtype=wp.vec3))
     return views, kept
 
 
@@ -252,6 +255,7 @@ def simulator_views(x: torch.Tensor, wind_ned: torch.Tensor, gust_velocity_body:
                     surface_max: torch.Tensor) -> Any:
     """A :class:`SimulatorViews` of an engine's float32 tensors: x [N, S], wind and gusts [N, 3], span
     [N], wing quarter chord, surface limits [N, 3] (zero-copy: the views follow in-place writes)."""
+    init_warp()  # an engine that is not Warp's own may run the first task kernel of the process
     views = SimulatorViews()
     views.x = wp.from_torch(x)
     for name, tensor in (("wind_ned", wind_ned), ("gust_velocity_body", gust_velocity_body),

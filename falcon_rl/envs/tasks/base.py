@@ -1,18 +1,23 @@
 """What every flight task shares: the trim cache, the command assembly, the stall and ground
 terminations, random draws from the env's generator and the bookkeeping of the previous action.
 
-A task is one small module holding a config dataclass and a :class:`Task` subclass. The env calls
+A task is one folder (``envs/tasks/<name>/``) holding a config dataclass and a :class:`Task` subclass
+whose step is written once, as Warp functions (its ``kernels`` module, :meth:`Task.fused_stepper`):
+every engine that runs task kernels runs that one body, in float32, whatever the simulator's dtype.
+The env calls
 
-    initial = task.sample_initial(mask)      # before Simulator.reset(initial, mask)
-    obs = task.start_episodes(state, mask)   # after_reset (buffers of the reset rows), then observe
+    initial = task.sample_initial(mask)      # torch: random draws, before Simulator.reset(initial, mask)
+    obs = task.start_episodes(mask, state)   # the episodes' start (buffers of the reset rows), observation
     command = task.command(action)           # [N, A] checked action in [-1, 1] -> [N, 4] command
-    obs, reward, reason = task.step(state, action)           # after the physics steps
-    obs = task.observe(state)                # [N, D] scaled and clipped observation (after reset)
-
-``step`` runs advance (clock, reference) -> update (filters fed by the new state) -> reward ->
-termination reason -> remember the action as a_{t-1} -> observe.
+    obs, reward, reason = task.step(action)  # after the physics steps, on the simulator's state
+    obs = task.observe(state)                # [N, D] observation of a given (measured) state
 
 and publishes ``task.info()`` (named [N] / [N, k] tensors) under the ("task", ...) keys.
+
+A task of the user's own may instead write its step in torch (no ``fused_stepper``): :meth:`torch_step`
+runs advance (clock, reference) -> update (filters fed by the new state) -> reward -> termination
+reason -> remember the action as a_{t-1} -> observe, on ``sim.state``; it warns once that it runs
+unfused. A task has one body or the other, never both (checked when it is built).
 
 Termination shared by all tasks (the paper's altitude task, reused by the others):
 
@@ -20,13 +25,15 @@ Termination shared by all tasks (the paper's altitude task, reused by the others
 
 Each termination has a reason, an index into :data:`TERMINATION_REASONS` that the env publishes as
 "termination_reason" (the first that applies, in that order; 0 while flying). A task adds its own
-(e.g. "lost": too far from the path) by extending :meth:`Task.termination_checks`; the env adds
-"non_finite" for a state, reward or action that is no longer finite.
+(e.g. "lost": too far from the path) in its step ("lost" by ``warp_common.termination_code``; a torch
+task by extending :meth:`Task.termination_checks`); the env adds "non_finite" for a state, reward or
+action that is no longer finite.
 """
 
 from __future__ import annotations
 
 import math
+import warnings
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, fields
 from typing import TYPE_CHECKING, ClassVar
@@ -48,6 +55,13 @@ TERMINATION_REASONS: tuple[str, ...] = ("none", "ground_contact", "alpha_stall",
                                         "non_finite")
 #: Index of each reason in :data:`TERMINATION_REASONS`.
 TERMINATION_CODE: dict[str, int] = {name: code for code, name in enumerate(TERMINATION_REASONS)}
+
+#: The torch step's methods (:meth:`Task.torch_step` and what it calls): a task with a Warp step
+#: defines none of them.
+TORCH_STEP_METHODS: tuple[str, ...] = ("torch_step", "advance", "update", "reward", "reward_terms_of",
+                                       "observe", "termination_checks", "termination_reason", "after_reset")
+#: Torch task classes already warned that they step unfused (:func:`warn_unfused`: once per class).
+_WARNED_UNFUSED: set[type] = set()
 
 _TRIM_CACHE: dict[tuple[str, str, float, float, str], tuple[torch.Tensor, torch.Tensor]] = {}
 
@@ -159,6 +173,15 @@ class Task(ABC):
         self.num_envs = sim.num_envs
         self.device = sim.device
         self.dtype = sim.dtype
+        warp_step = self.has_warp_step()
+        if warp_step:
+            self._check_one_body()
+            if not sim.engine.runs_task_kernels:
+                raise ValueError(f"the {self.name} task steps in Warp kernels, which run on CPU or CUDA "
+                                 f"buffers; the {type(sim.engine).__name__} on {sim.device} runs none")
+        #: dtype of the task's own buffers: float32 for a task with a Warp step (its kernels read and write
+        #: them in place), else the simulator's.
+        self.buffer_dtype = torch.float32 if warp_step else self.dtype
         env = self.airframe.envelope
         self.trim_airspeed = float(config.trim_airspeed or env.cruise_speed)
         self.trim = trim_point(sim, self.trim_airspeed, ground_effect=ground_effect)
@@ -169,13 +192,13 @@ class Task(ABC):
         self.command_buffer = self.trim.command.expand(n, 4).clone()
         self.channels = torch.tensor(self.action_channels, device=self.device)
         #: Action of the previous env step (zero after a reset). [N, A]
-        self.previous_action = torch.zeros(n, self.action_dim, device=self.device, dtype=self.dtype)
-        self.time = torch.zeros(n, device=self.device, dtype=self.dtype)
+        self.previous_action = torch.zeros(n, self.action_dim, device=self.device, dtype=self.buffer_dtype)
+        self.time = torch.zeros(n, device=self.device, dtype=self.buffer_dtype)
         k = len(self.reward_terms)
         #: [N, K] each reward term of the last step (K = len(reward_terms)), and [N, K] their sums over
         #: the steps since the env's last ``reward_term_means`` (the fused step writes both too).
-        self.reward_term_values = torch.zeros(n, k, device=self.device, dtype=self.dtype)
-        self.reward_term_sums = torch.zeros(n, k, device=self.device, dtype=self.dtype)
+        self.reward_term_values = torch.zeros(n, k, device=self.device, dtype=self.buffer_dtype)
+        self.reward_term_sums = torch.zeros(n, k, device=self.device, dtype=self.buffer_dtype)
         #: Env steps since the sums started (the env counts them and starts them over).
         self.reward_term_steps = 0
 
@@ -227,33 +250,20 @@ class Task(ABC):
         where ``mask`` [N] is True. Returns the ``initial`` mapping for ``Simulator.reset``."""
 
     def after_reset(self, state: TensorDictBase, mask: torch.Tensor) -> None:
-        """Reset per-episode buffers of the rows in ``mask`` [N] from the fresh ``state``."""
+        """Torch step: reset per-episode buffers of the rows in ``mask`` [N] from the fresh ``state``."""
         self.previous_action[mask] = 0.0
         self.time[mask] = 0.0
 
-    def start_episodes(self, state: TensorDictBase | None, mask: torch.Tensor,
-                       starter: TaskStep | None = None) -> torch.Tensor:
-        """[N, D] observation (a new tensor) after the rows in ``mask`` [N] bool were reset to ``state``,
-        the simulator's: :meth:`after_reset` then :meth:`observe`, or, given ``starter`` (this task's
-        :meth:`fused_starter`, which the caller asked for once before the reset), the same in one
-        backend launch (parity tested), which reads the simulator's buffers (``state`` may then be
-        None)."""
-        if starter is not None:
-            return starter.start(mask).clone()
-        if state is None:
-            raise ValueError(f"the {self.name} task needs the reset state to start episodes")
+    def start_episodes(self, mask: torch.Tensor, state: TensorDictBase | None = None) -> torch.Tensor:
+        """[N, D] observation (a new tensor, the simulator's dtype) after the rows in ``mask`` [N] bool were
+        reset: the Warp step's start kernel, which reads the simulator's buffers, or, for a torch task,
+        :meth:`after_reset` then :meth:`observe` of ``state``, the simulator's (built when None)."""
+        stepper = self.fused_stepper()
+        if stepper is not None:
+            return stepper.start(mask).to(self.dtype, copy=True)
+        state = self.sim.state if state is None else state
         self.after_reset(state, mask)
         return self.observe(state)
-
-    def fused_starter(self) -> TaskStep | None:
-        """The fused step (:meth:`fused_stepper`) when it has a start kernel, the twin of
-        :meth:`after_reset` and :meth:`observe` of the class it twins (``TaskStep.owner``), and this
-        task's class does not override ``after_reset`` (``observe`` and the methods ``after_reset`` calls
-        are the step's, checked by :meth:`fused_stepper`); else None: the task starts episodes in torch."""
-        stepper = self.fused_stepper()
-        if stepper is None or stepper.start_kernel is None or self.overrides(stepper.owner, ("after_reset",)):
-            return None
-        return stepper
 
     def command(self, action: torch.Tensor) -> torch.Tensor:
         """[N, A] action in [-1, 1] -> [N, 4] simulator command (trim in undriven channels)."""
@@ -261,26 +271,23 @@ class Task(ABC):
         return self.command_buffer
 
     def advance(self) -> None:
-        """Move the task clock (and any reference) forward by one env step."""
+        """Torch step: move the task clock (and any reference) forward by one env step."""
         self.time += self.control_dt
 
-    @abstractmethod
     def observe(self, state: TensorDictBase) -> torch.Tensor:
-        """[N, D] observation, scaled and clipped to +-observation_clip."""
-
-    def observation_of(self, state: TensorDictBase, fused: bool = True) -> torch.Tensor:
-        """[N, D] the observation of ``state`` (e.g. a measured one: [N, 1] scalars or the simulator's
-        [N]) with the current buffers, without side effects: the fused step's observe kernel where the
-        task has one (the same code as its step's observation; ``fused=False``: never), else
-        :meth:`observe`."""
-        stepper = self.fused_stepper() if fused else None
-        if stepper is not None and stepper.observe_kernel is not None:
-            return stepper.observe(state).to(self.dtype)
-        return self.observe(state)
+        """[N, D] observation of ``state`` (e.g. a measured one: [N, 1] scalars or the simulator's [N]),
+        scaled and clipped to +-observation_clip, with the current buffers and no side effect: the Warp
+        step's observe kernel (the same function as its step's observation), in the simulator's dtype.
+        A torch task defines it."""
+        stepper = self.fused_stepper()
+        if stepper is None or stepper.observe_kernel is None:
+            raise NotImplementedError(f"{type(self).__name__} has neither a Warp step with an observe kernel "
+                                      f"nor an observe method")
+        return stepper.observe(state).to(self.dtype)
 
     def reward(self, state: TensorDictBase, action: torch.Tensor) -> torch.Tensor:
-        """[N] reward of the transition that ended in ``state`` under ``action`` [N, A]: the sum of
-        :meth:`reward_terms_of` in the order of :attr:`reward_terms` (each kept in
+        """Torch step: [N] reward of the transition that ended in ``state`` under ``action`` [N, A]: the
+        sum of :meth:`reward_terms_of` in the order of :attr:`reward_terms` (each kept in
         :attr:`reward_term_values` and added to :attr:`reward_term_sums`). A task may override this
         with one expression instead (then it has no named terms)."""
         terms = self.reward_terms_of(state, action)
@@ -295,11 +302,12 @@ class Task(ABC):
         return total
 
     def reward_terms_of(self, state: TensorDictBase, action: torch.Tensor) -> tuple[torch.Tensor, ...]:
-        """The reward's terms, each [N], weighted and signed, in the order of :attr:`reward_terms`."""
+        """Torch step: the reward's terms, each [N], weighted and signed, in the order of
+        :attr:`reward_terms`."""
         raise NotImplementedError(f"{type(self).__name__} defines neither reward nor reward_terms_of")
 
     def termination_checks(self, state: TensorDictBase) -> dict[str, torch.Tensor]:
-        """{reason: [N] bool} of the terminations this task checks (names of TERMINATION_REASONS):
+        """Torch step: {reason: [N] bool} of the terminations it checks (names of TERMINATION_REASONS):
         ground contact, alpha stall (|alpha| > k alpha_stall) and speed stall (V_a < V_stall)."""
         return {"ground_contact": state["ground_contact"],
                 "alpha_stall": state["alpha"].abs() > self.stall_alpha,
@@ -317,13 +325,27 @@ class Task(ABC):
         return self.termination_reason(state) > 0
 
     def update(self, state: TensorDictBase) -> None:
-        """Per-step filters fed by the new state (integrals, rates, target release); optional."""
+        """Torch step: per-step filters fed by the new state (integrals, rates, target release); optional."""
         return None
 
-    def step(self, state: TensorDictBase, action: torch.Tensor
-             ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """(observation [N, D], reward [N], termination reason [N] long, 0 while flying) after an env
-        step that applied ``action`` [N, A] (checked: finite, in [-1, 1]) and ended in ``state``."""
+    def step(self, action: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """(observation [N, D], reward [N], termination reason [N] long, 0 while flying) after the physics
+        sub-steps of ``action`` [N, A] (checked: finite, in [-1, 1]), on the simulator's state: the Warp
+        step (buffers the next call overwrites, float32) or, for a torch task, :meth:`torch_step` of
+        ``sim.state``."""
+        stepper = self.fused_stepper()
+        if stepper is not None:
+            return stepper(action)
+        return self.torch_step(self.sim.state, action)
+
+    def torch_step(self, state: TensorDictBase, action: torch.Tensor
+                   ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """A torch task's step (the module docstring's order) after an env step that applied ``action``
+        [N, A] and ended in ``state``; a task with a Warp step has none."""
+        if self.has_warp_step():
+            raise TypeError(f"{type(self).__name__} steps in its Warp kernels (fused_stepper): "
+                            f"call step(action)")
+        warn_unfused(type(self), self.sim.engine.runs_task_kernels)
         self.advance()
         self.update(state)
         reward = self.reward(state, action)
@@ -332,35 +354,45 @@ class Task(ABC):
         return self.observe(state), reward, reason
 
     def fused_stepper(self) -> TaskStep | None:
-        """This task's backend-fused step (bound on first use, kept in ``_fused``), or None when it has
-        none for the simulator's backend (the default) or a subclass overrides a method it fuses.
+        """This task's Warp step (``warp_common.FusedStep``, bound on first use and kept in ``_fused``;
+        ``warp_common.fused_stepper``), or None for a torch task (the default).
 
-        Called right after the physics sub-steps with the same checked action [N, A], it reads the
-        simulator's buffers instead of a state TensorDict, updates every buffer :meth:`step` updates,
-        exactly as :meth:`step` would (parity tested), and returns (observation [N, D], reward [N],
-        termination reason [N] long), buffers that the next call overwrites. On the warp backend the env
-        runs it inside the engine's one-call step (``Engine.fuse``) when nothing else overrides it."""
+        Called right after the physics sub-steps with the checked action [N, A], it reads the simulator's
+        buffers (float32 copies of a float64 simulator's) and the task's, updates the task's buffers in
+        place and returns (observation [N, D], reward [N], termination reason [N] long), buffers that the
+        next call overwrites. Its start kernel starts episodes (:meth:`start_episodes`) and its observe
+        kernel observes a given state (:meth:`observe`). On the warp engine the env runs it inside the
+        engine's one-call step (``Engine.fuse``)."""
         return None
 
-    def overrides(self, owner: type, methods: tuple[str, ...]) -> bool:
-        """Whether this task's class overrides one of ``methods`` of ``owner`` (a fused twin of them then
-        does not apply)."""
-        cls = type(self)
-        return any(getattr(cls, name) is not getattr(owner, name) for name in methods)
+    @classmethod
+    def has_warp_step(cls) -> bool:
+        """Whether the task's step is written as Warp functions (:meth:`fused_stepper`)."""
+        return cls.fused_stepper is not Task.fused_stepper
 
-    def fused_step(self, action: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor] | None:
-        """The backend-fused twin of :meth:`step` (:meth:`fused_stepper`), or None when there is none:
-        the env then builds ``sim.state`` and calls :meth:`step`."""
-        stepper = self.fused_stepper()
-        return None if stepper is None else stepper(action)
+    def _check_one_body(self) -> None:
+        """A task with a Warp step defines none of the torch step's methods (they would never run):
+        TypeError naming them otherwise."""
+        cls = type(self)
+        defined = [name for name in TORCH_STEP_METHODS if getattr(cls, name) is not getattr(Task, name)]
+        if defined:
+            raise TypeError(
+                f"{cls.__name__} defines {', '.join(defined)}, but its step is its Warp functions "
+                f"(fused_stepper), so they would never run: a task's step, reward and observation are "
+                f"written once. Change the Warp functions (its kernels module, with a FusedStep of its own), "
+                f"or write the whole step in torch (set fused_stepper = Task.fused_stepper)")
 
     def __getstate__(self) -> dict:
         """The plain state: a fused step's backend binding (``_fused``) is made again after unpickling."""
         return {**self.__dict__, "_fused": None}
 
-    @abstractmethod
     def info(self) -> dict[str, torch.Tensor]:
-        """Task quantities published under ("task", name): references and tracking errors."""
+        """Task quantities published under ("task", name): references and tracking errors, copies in the
+        simulator's dtype (by default of :meth:`info_views`)."""
+        views = self.info_views()
+        if views is None:
+            raise NotImplementedError(f"{type(self).__name__} defines neither info nor info_views")
+        return {key: value.to(self.dtype, copy=True) for key, value in views.items()}
 
     def info_views(self) -> dict[str, torch.Tensor] | None:
         """:meth:`info`'s entries as live views of the task's buffers (no copies: they change with the next
@@ -371,6 +403,16 @@ class Task(ABC):
     def info_shapes(self) -> dict[str, tuple[int, ...]]:
         """Trailing shapes of :meth:`info` entries (after the batch dim)."""
         return {k: tuple(v.shape[1:]) for k, v in self.info().items()}
+
+
+def warn_unfused(cls: type, engine_runs_kernels: bool) -> None:
+    """Warn once per class (RuntimeWarning) that a torch task steps unfused on an engine that runs task
+    kernels (a separate torch pass over the state instead of one Warp launch)."""
+    if engine_runs_kernels and cls not in _WARNED_UNFUSED:
+        _WARNED_UNFUSED.add(cls)
+        warnings.warn(f"{cls.__name__} steps in torch, unfused (slower): write its step as Warp functions "
+                      f"(Task.fused_stepper; CONTRIBUTING, 'Add a task') to run it in the engine's step",
+                      RuntimeWarning, stacklevel=3)
 
 
 def gaussian(error: torch.Tensor, sigma: float) -> torch.Tensor:

@@ -20,9 +20,7 @@ kernel (``FusedStep.start_kernel``: ``after_reset`` and ``observe`` after the ph
 
 from __future__ import annotations
 
-import functools
 import math
-import warnings
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, ClassVar
 
@@ -216,19 +214,33 @@ class FusedStep:
         #: buffer of its own: a caller may still read the step's after a reset).
         self.start_mask = torch.zeros(n, device=device, dtype=torch.bool)
         self.start_observation = torch.zeros_like(self.observation)
-        #: The task class whose methods the kernels twin (:func:`fused_stepper` sets it to its ``owner``).
-        self.owner: type = type(task)
         self._launches: list[Any] = []
         self._replay: Callable[[], None] = lambda: None
         self._start_replay: Callable[[], None] = lambda: None
         self._inputs: list[Any] = []
         self._key: tuple[int, ...] = ()
+        self._shadows: list[tuple[torch.Tensor, torch.Tensor]] = []
 
     def _simulator_tensors(self) -> tuple[torch.Tensor, ...]:
         sim = self.task.sim
         p = sim.params
         return (sim.x, sim.wind_ned, sim.gust_velocity_body, p.span, p.wing_quarter_chord, p.surface_min,
                 p.surface_max)
+
+    def _kernel_tensors(self) -> tuple[torch.Tensor, ...]:
+        """The simulator tensors the kernels read, in float32: the tensors themselves, or, for a float64
+        simulator, float32 shadows (made at :meth:`bind`, filled by :meth:`refresh` before each launch)."""
+        shadows = [t if t.dtype == torch.float32 and t.is_contiguous()
+                   else torch.empty(t.shape, device=t.device, dtype=torch.float32)
+                   for t in self._simulator_tensors()]
+        self._shadows = [(source, shadow) for source, shadow in zip(self._simulator_tensors(), shadows,
+                                                                    strict=True) if shadow is not source]
+        return tuple(shadows)
+
+    def refresh(self) -> None:
+        """Copy a float64 simulator's tensors into their float32 shadows (nothing for a float32 one)."""
+        for source, shadow in self._shadows:
+            shadow.copy_(source)
 
     def binding_key(self) -> tuple[int, ...]:
         """What the launches were bound to (the addresses of the simulator tensors the kernel reads)."""
@@ -250,7 +262,7 @@ class FusedStep:
 
     def bind(self) -> None:
         """Bind zero-copy views of the simulator's and the task's tensors and record the launches."""
-        views = simulator_views(*self._simulator_tensors())
+        views = simulator_views(*self._kernel_tensors())
         outputs = [wp.from_torch(self.observation), wp.from_torch(self.reward), warp_view(self.reason)]
         task_inputs = self.task_inputs()
         self._inputs = [views, *task_inputs, *outputs]
@@ -305,6 +317,7 @@ class FusedStep:
         if self.start_kernel is None:
             raise RuntimeError(f"{type(self).__name__} has no start kernel")
         self.ensure_bound()
+        self.refresh()
         self.start_mask.copy_(mask)
         self._start_replay()
         return self.start_observation
@@ -312,43 +325,17 @@ class FusedStep:
     def __call__(self, action: torch.Tensor) -> StepOutputs:
         """(observation [N, D], reward [N], reason [N] long) of the step that applied ``action`` [N, A]."""
         self.ensure_bound()
+        self.refresh()
         self.action.copy_(action)
         self.draw()
         self._replay()
         return self.observation, self.reward, self.reason
 
 
-#: Task classes already warned that their step runs unfused (:func:`fused_stepper` warns once per class).
-_WARNED_UNFUSED: set[type] = set()
-
-
-@functools.cache
-def _overridden(cls: type, owner: type, methods: tuple[str, ...]) -> tuple[str, ...]:
-    """The ``methods`` of ``owner`` that ``cls`` overrides (once per class: the staged step asks every
-    step)."""
-    return tuple(name for name in methods if getattr(cls, name) is not getattr(owner, name))
-
-
-def fused_stepper(task: Task, owner: type, methods: tuple[str, ...], factory: type[FusedStep]
-                  ) -> FusedStep | None:
-    """The shared body of a task's ``fused_stepper``: None when the simulator's engine runs no task
-    kernels, or when a subclass of ``owner`` overrides one of the fused ``methods`` (it then steps in
-    torch, ``Task.step``, and a RuntimeWarning says so once per class: its kernels twin ``owner``'s
-    methods, not the subclass's), else the task's ``factory`` step, built on the first call and kept in
-    ``task._fused`` (its ``owner`` set: ``Task.fused_starter`` checks ``after_reset`` against it)."""
-    if not task.sim.engine.runs_task_kernels:
-        return None
-    overridden = _overridden(type(task), owner, methods)
-    if overridden:
-        if type(task) not in _WARNED_UNFUSED:
-            _WARNED_UNFUSED.add(type(task))
-            warnings.warn(f"{type(task).__name__} overrides {', '.join(overridden)} of {owner.__name__}, "
-                          f"whose fused Warp step twins {owner.__name__}'s methods: it steps in torch "
-                          f"instead (slower); give it a FusedStep of its own (Task.fused_stepper) to fuse it",
-                          RuntimeWarning, stacklevel=3)
-        return None
+def fused_stepper(task: Task, factory: type[FusedStep]) -> FusedStep:
+    """The shared body of a task's ``fused_stepper``: the task's ``factory`` step, built on the first
+    call and kept in ``task._fused``."""
     fused = getattr(task, "_fused", None)
     if fused is None:
         fused = task.__dict__["_fused"] = factory(task)
-        fused.owner = owner
     return fused

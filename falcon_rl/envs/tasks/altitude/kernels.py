@@ -1,21 +1,23 @@
-"""The altitude task's step in one Warp kernel (``AltitudeTask.fused_step`` on the warp backend).
+"""The altitude task's step, written once as Warp functions (``AltitudeTask.fused_stepper``).
 
-:func:`altitude_step_kernel` does for env i what ``AltitudeTask.step(sim.state, action)`` does: it
-computes the derived state the task reads with ``warp_common.flight_state`` (the twins of the engine's
-evaluation kernel), then advances the clock and the reference ramp, releases the next target
-(``target_sequence``), updates the filters, and writes the reward, the termination reason and the
-clipped observation. The task's buffers are zero-copy Warp views of its torch tensors, so ``info()``,
-``after_reset`` and the torch ``step`` see the same memory. Clamps keep torch's semantics (a NaN stays
-NaN), so a broken row reads the same both ways.
+:func:`altitude_step` is the task's step for env i after the physics (the equations of the task's
+module docstring): it computes the derived state the task reads with ``flight_state`` (the twins of
+the engine's evaluation kernel), then advances the clock and the reference ramp, releases the next
+target (``target_sequence``), updates the filters, and writes the named reward terms, the reward, the
+termination reason and the clipped observation. The task's buffers are zero-copy Warp views of its
+float32 torch tensors, so ``info()`` and ``sample_initial`` see the same memory. Clamps keep torch's
+semantics (a NaN stays NaN), so a broken row is caught by the env's non-finite guard.
 
 :class:`FusedAltitudeStep` (a ``warp_common.FusedStep``) binds the views once, records the launch (one
 per CPU slice of the engine) and replays it each step; per step it runs two torch ops (the action copy
-and, with a target sequence, the random shift drawn from the task's generator exactly as the torch
-step draws it) and the launch: no allocation, no host synchronisation.
+and, with a target sequence, the random shift drawn from the task's generator) and the launch: no
+allocation, no host synchronisation. The warp engine calls :func:`altitude_step` inside its own
+one-launch env step instead.
 
-:func:`altitude_start_kernel` is the start of episodes after a reset (``Task.start_episodes``): the
-twin of ``AltitudeTask.after_reset`` for the reset rows, then every env's reference, errors and
-observation (the observation written by the same :func:`write_observation` as the step's).
+:func:`altitude_start` starts the episodes after a reset (``Task.start_episodes``): the reset rows'
+buffers, then every env's reference, errors and observation (written by the same
+:func:`write_observation` as the step's); :func:`altitude_observe` is the observation of a given
+(measured) state (``Task.observe``).
 """
 
 from __future__ import annotations
@@ -91,7 +93,7 @@ class AltitudeBuffers:
 
 @wp.struct
 class AltitudeConstants:
-    """Config and airframe constants, each the float32 the torch step's scalar becomes."""
+    """Config and airframe constants, float32."""
 
     control_dt: float
     target_sequence: int
@@ -124,8 +126,8 @@ class AltitudeConstants:
 
 @wp.func
 def reference_wp(target: float, start: float, rate: float, elapsed: float) -> wp.vec2:
-    """(h_ref, hdot_ref) of the ramp from ``start`` to ``target`` at ``rate`` after ``elapsed`` s
-    (twin of ``AltitudeTask._update_reference``)."""
+    """(h_ref, hdot_ref) of the ramp from ``start`` to ``target`` at ``rate`` after ``elapsed`` s:
+    h_ref = h* - sgn(h* - h_0) max(|h* - h_0| - r t, 0), hdot_ref = sgn(h* - h_0) r while it runs."""
     gap = target - start
     direction = torch_sign(gap)
     remaining = clamp_min_keep_nan(wp.abs(gap) - rate * elapsed, 0.0)
@@ -152,8 +154,8 @@ def next_target(target: float, shift: wp.int64, table: wp.array(dtype=wp.float32
 @wp.func
 def write_observation(f: FlightState, c: AltitudeConstants, e_h: float, elevator_rate: float, integral: float,
                       reference_rate: float, observation: wp.array2d(dtype=wp.float32), i: int):
-    """observation[i] <- the clipped observation [11] of env i (twin of ``AltitudeTask.observe``) from
-    its flight state, e_h = h - h_ref, the elevator rate (rad/s), int(e_h) and hdot_ref."""
+    """observation[i] <- the clipped observation [11] of env i (the task's module docstring) from its
+    flight state, e_h = h - h_ref, the elevator rate (rad/s), int(e_h) and hdot_ref."""
     lim = c.observation_clip
     observation[i, 0] = clip(e_h / 25.0, lim)
     observation[i, 1] = clip(f.angular_rate[1] / 2.0, lim)
@@ -241,10 +243,9 @@ def altitude_step(sim: SimulatorViews, buf: AltitudeBuffers, c: AltitudeConstant
 @wp.func
 def altitude_start(sim: SimulatorViews, buf: AltitudeBuffers, c: AltitudeConstants,
                    observation: wp.array2d(dtype=wp.float32), mask: wp.array(dtype=wp.bool), i: int):
-    """The start of env i's episode when ``mask[i]``, its physics reset already written (twin of
-    ``AltitudeTask.after_reset``: clock, ramp time, filters and previous action zeroed, elevator and
-    airspeed remembered), then, every env, the reference ramp, the errors and the observation [N, 11]
-    (twin of ``AltitudeTask.observe``)."""
+    """The start of env i's episode when ``mask[i]``, its physics reset already written (clock, ramp
+    time, filters and previous action zeroed, elevator and airspeed remembered), then, every env, the
+    reference ramp, the errors and the observation [N, 11]."""
     f = flight_state(sim, i)
     if mask[i]:
         buf.time[i] = 0.0
@@ -270,7 +271,7 @@ def altitude_start(sim: SimulatorViews, buf: AltitudeBuffers, c: AltitudeConstan
 def altitude_observe(f: FlightState, buf: AltitudeBuffers, c: AltitudeConstants,
                      observation: wp.array2d(dtype=wp.float32), i: int):
     """The observation [N, D] of env i's flight state ``f`` (e.g. a measured one) with the task's current
-    buffers, no side effect (twin of ``AltitudeTask.observe``)."""
+    buffers, no side effect."""
     write_observation(f, c, f.height - buf.reference[i], buf.elevator_rate[i], buf.error_integral[i],
                       buf.reference_rate[i], observation, i)
 
@@ -284,8 +285,8 @@ altitude_observe_kernel = observe_kernel("altitude", altitude_observe, AltitudeB
 
 
 def altitude_constants(task: Task) -> Any:
-    """:class:`AltitudeConstants` of ``task``'s config and airframe (scalars as the torch step forms
-    them: Python products first, then float32)."""
+    """:class:`AltitudeConstants` of ``task``'s config and airframe (Python products first, then
+    float32)."""
     cfg = task.config
     return fill_struct(AltitudeConstants(), {
         "control_dt": task.control_dt, "hold_seconds": cfg.hold_seconds, "capture_band": cfg.capture_band,
@@ -334,7 +335,8 @@ class FusedAltitudeStep(FusedStep):
         return [buf, altitude_constants(task)]
 
     def draw(self) -> None:
-        """With a target sequence: the random target shift [N], drawn as ``_release_next_targets`` does."""
+        """With a target sequence: the random target shift [N] in [1, T) (a different target of the
+        table's T), from the task's generator."""
         task = self.task
         if task.config.target_sequence:
             torch.randint(1, self.shift_high, (task.num_envs,), generator=task.generator, device=task.device,

@@ -41,24 +41,22 @@ Published under ("task", ...): target_altitude h*, reference_altitude h_ref, ref
 initial_altitude h_0, altitude_error h - h* (the error the metrics score) and reference_error
 h - h_ref.
 
-On the warp backend the env's step runs :meth:`AltitudeTask.fused_step`: all of the above after the
-physics in one Warp kernel (``altitude.kernels``) instead of ``Simulator.state`` and ~100 torch ops; a
-reset starts the episodes (``after_reset`` and the observation) in one launch too.
+The step, the start of episodes and the observation are written once, as Warp functions
+(``altitude.kernels``): every engine runs them (the warp engine inside its one-launch env step, the
+torch engine after its torch physics); the episode draws (``sample_initial``) are torch, from the env's
+generator.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, ClassVar
 
 import torch
-from tensordict import TensorDictBase
 
-from ....constants import DEG, G0
 from ....physics import Simulator
 from ....physics import state as S
-from ..base import Task, TaskConfig, gaussian, normalised_surfaces, taper
+from ..base import Task, TaskConfig
 
 if TYPE_CHECKING:
     from ..warp_common import FusedStep
@@ -118,7 +116,7 @@ class AltitudeTask(Task):
     def __init__(self, config: AltitudeConfig, sim: Simulator, generator: torch.Generator,
                  control_dt: float, ground_effect: bool | str = True):
         super().__init__(config, sim, generator, control_dt, ground_effect)
-        n, kw = self.num_envs, {"device": self.device, "dtype": self.dtype}
+        n, kw = self.num_envs, {"device": self.device, "dtype": self.buffer_dtype}
         #: Reference climb/sink rate per env, m/s. [N]
         self.default_climb_rate = float(config.climb_rate or self.airframe.envelope.climb_rate_limit)
         self.climb_rate = torch.full((n,), self.default_climb_rate, **kw)
@@ -152,128 +150,17 @@ class AltitudeTask(Task):
         for buffer, value in ((self.target, target), (self.initial_altitude, start),
                               (self.segment_start, start)):
             buffer.copy_(torch.where(mask, value, buffer))
-        return {**self.trim_initial(), "height": self.initial_altitude.clone()}
+        return {**self.trim_initial(), "height": self.initial_altitude.to(self.dtype, copy=True)}
 
-    def after_reset(self, state: TensorDictBase, mask: torch.Tensor) -> None:
-        super().after_reset(state, mask)
-        for buffer in (self.segment_time, self.time_in_band, self.error_integral):
-            buffer.masked_fill_(mask, 0.0)
-        elevator = state["surface_position"][:, S.ELEVATOR]
-        self.previous_elevator.copy_(torch.where(mask, elevator, self.previous_elevator))
-        self.elevator_rate.masked_fill_(mask, 0.0)
-        self.previous_airspeed.copy_(torch.where(mask, state["airspeed"], self.previous_airspeed))
-        self.airspeed_rate.masked_fill_(mask, 0.0)
-        self._update_reference()
-        self.altitude_error.copy_(state["height"] - self.target)
-        self.reference_error.copy_(state["height"] - self.reference)
-
-    # ------------------------------------------------------------------ reference
-    def _update_reference(self) -> None:
-        """h_ref and hdot_ref from the ramp's start, target and elapsed time (closed form)."""
-        gap = self.target - self.segment_start
-        direction = torch.sign(gap)
-        remaining = (gap.abs() - self.climb_rate * self.segment_time).clamp_min(0.0)
-        self.reference.copy_(self.target - direction * remaining)
-        self.reference_rate.copy_(torch.where(remaining > 0, direction * self.climb_rate, 0.0))
-
-    def advance(self) -> None:
-        super().advance()
-        self.segment_time += self.control_dt
-        self._update_reference()
-
-    def _release_next_targets(self, height: torch.Tensor) -> None:
-        """Target sequence: envs that held h* for hold_seconds get a new, different target."""
-        cfg = self.config
-        inside = (height - self.target).abs() <= cfg.capture_band
-        self.time_in_band.copy_(torch.where(inside, self.time_in_band + self.control_dt, 0.0))
-        held = self.time_in_band >= cfg.hold_seconds
-        table = self.target_table
-        shift = torch.randint(1, max(len(table), 2), (self.num_envs,), generator=self.generator,
-                              device=self.device)
-        current = (self.target[:, None] - table).abs().argmin(-1)
-        new_target = table[(current + shift) % len(table)]
-        self.segment_start.copy_(torch.where(held, self.target, self.segment_start))
-        self.initial_altitude.copy_(torch.where(held, self.target, self.initial_altitude))
-        self.target.copy_(torch.where(held, new_target, self.target))
-        self.segment_time.masked_fill_(held, 0.0)
-        self.time_in_band.masked_fill_(held, 0.0)
-        self._update_reference()
-
-    # ------------------------------------------------------------------ MDP
-    def update(self, state: TensorDictBase) -> None:
-        cfg = self.config
-        height = state["height"]
-        if cfg.target_sequence:
-            self._release_next_targets(height)
-        self.altitude_error.copy_(height - self.target)
-        self.reference_error.copy_(height - self.reference)
-        elevator = state["surface_position"][:, S.ELEVATOR]
-        torch.div(elevator - self.previous_elevator, self.control_dt, out=self.elevator_rate)
-        self.previous_elevator.copy_(elevator)
-        torch.div(state["airspeed"] - self.previous_airspeed, self.control_dt, out=self.airspeed_rate)
-        self.previous_airspeed.copy_(state["airspeed"])
-        self.error_integral.copy_((self.error_integral + (height - self.reference) * self.control_dt)
-                                  .clamp(-cfg.integral_limit, cfg.integral_limit))
-
-    def observe(self, state: TensorDictBase) -> torch.Tensor:
-        cfg = self.config
-        e_h = state["height"] - self.reference
-        surfaces = normalised_surfaces(state, self.sim)
-        throttle = 2.0 * state["throttle"].mean(-1) - 1.0
-        obs = torch.stack([
-            e_h / 25.0,
-            state["angular_rate_body"][:, S.PITCH] / 2.0,
-            (state["airspeed"] - self.trim_airspeed) / (cfg.airspeed_scale * self.trim_airspeed),
-            state["euler"][:, S.PITCH] / (math.pi / 4),
-            state["velocity_ned"][:, S.DOWN] / self.airframe.envelope.climb_rate_limit,
-            state["alpha"] / (20.0 * DEG),
-            surfaces[:, S.ELEVATOR],
-            self.elevator_rate / (100.0 * DEG),
-            throttle,
-            self.error_integral / 10.0,
-            self.reference_rate / 5.0,
-        ], dim=-1)
-        return obs.clamp(-self.observation_clip, self.observation_clip)
-
-    def reward_terms_of(self, state: TensorDictBase, action: torch.Tensor) -> tuple[torch.Tensor, ...]:
-        cfg = self.config
-        e_h = state["height"] - self.reference
-        e_v = state["airspeed"] - self.trim_airspeed
-        q = state["angular_rate_body"][:, S.PITCH]
-        action_rate = torch.linalg.vector_norm(action - self.previous_action, dim=-1)
-        direction = torch.sign(self.target - self.initial_altitude)
-        past_target = (direction * (state["height"] - self.target)).clamp_min(0.0)
-        return (cfg.w_altitude * gaussian(e_h, cfg.sigma_altitude),
-                -(cfg.w_airspeed * e_v.abs() / self.trim_airspeed),
-                -(cfg.w_pitch_rate * torch.clamp(q * q, max=cfg.pitch_rate_cap)),
-                -(cfg.w_smooth * action_rate * taper(e_h, cfg.gate_band)),
-                cfg.w_altitude * taper(e_h, cfg.capture_band)
-                * taper(e_v, cfg.airspeed_band_fraction * self.trim_airspeed),
-                torch.full_like(e_h, cfg.survival_bonus),
-                -(cfg.w_overshoot * past_target),
-                -(cfg.w_energy_rate * self.energy_rate_error(state).abs().clamp(max=self.energy_rate_cap)))
-
-    def energy_rate_error(self, state: TensorDictBase) -> torch.Tensor:
-        """e_E [N]: (hdot + V_a dV_a/dt / g - hdot_ref) / r, r the reference climb rate limit."""
-        climb = -state["velocity_ned"][:, S.DOWN]
-        energy_rate = climb + state["airspeed"] * self.airspeed_rate / G0
-        return (energy_rate - self.reference_rate) / self.airframe.envelope.climb_rate_limit
-
-    # ------------------------------------------------------------------ fused step
-    def fused_stepper(self) -> FusedStep | None:
-        """:meth:`step` as one Warp kernel on the warp backend (``altitude.kernels``; None elsewhere, or
-        when a subclass overrides a method of the step): (observation [N, 11], reward [N], reason [N]
-        long), buffers overwritten by the next call. With ``target_sequence`` the random shift is drawn
-        from the task's generator in torch before the launch, exactly as :meth:`step` draws it."""
-        if not self.sim.engine.runs_task_kernels:
-            return None
+    # ------------------------------------------------------------------ step
+    def fused_stepper(self) -> FusedStep:
+        """The task's step, its start and its observation (``altitude.kernels``, :class:`FusedAltitudeStep`):
+        (observation [N, 11], reward [N], reason [N] long), buffers overwritten by the next call. With
+        ``target_sequence`` the random target shift is drawn from the task's generator before the launch."""
         from ..warp_common import fused_stepper
         from .kernels import FusedAltitudeStep
 
-        return fused_stepper(self, AltitudeTask, _FUSED_METHODS, FusedAltitudeStep)
-
-    def info(self) -> dict[str, torch.Tensor]:
-        return {key: value.clone() for key, value in self.info_views().items()}
+        return fused_stepper(self, FusedAltitudeStep)
 
     def info_views(self) -> dict[str, torch.Tensor]:
         return {
@@ -284,9 +171,3 @@ class AltitudeTask(Task):
             "altitude_error": self.altitude_error,
             "reference_error": self.reference_error,
         }
-
-
-#: The methods :meth:`AltitudeTask.fused_step` fuses: a subclass that overrides one falls back to ``step``.
-_FUSED_METHODS: tuple[str, ...] = ("step", "advance", "update", "reward", "reward_terms_of", "observe",
-                                   "termination_checks",
-                                   "termination_reason", "_update_reference", "_release_next_targets")

@@ -1,16 +1,23 @@
-"""The attitude task's step in one Warp kernel (``AttitudeTask.fused_step`` on the warp backend).
+"""The attitude task's step, written once as Warp functions (``AttitudeTask.fused_stepper``).
 
-:func:`attitude_step_kernel` does for env i what ``AttitudeTask.step(sim.state, action)`` does: it
-advances the clock and the command stream (a row of the maneuver table, or one step of the
-``RandomCommandStream``: timer, target redraw on expiry, slew-limited command), computes the bank,
-climb-rate and airspeed errors from ``warp_common.flight_state``, and writes the reward, the
-termination reason and the clipped observation. The random stream's uniforms (N x 4 per step, drawn
-whether or not a target expires) are drawn in torch from the task's generator before the launch, as
-``RandomCommandStream.step`` draws them.
+:func:`attitude_step` is the task's step for env i after the physics (the equations of the task's
+module docstring): it advances the clock and the command stream (a row of the maneuver table, or one
+step of the random stream, :func:`random_stream_step`: timer, target redraw on expiry, slew-limited
+command), computes the bank, climb-rate and airspeed errors from ``flight_state`` (the twins of the
+engine's evaluation kernel), and writes the named reward terms, the reward, the termination reason and
+the clipped observation. The task's buffers and the random stream's state (command, target, timer) are
+zero-copy Warp views of their torch tensors, so ``info()`` and the stream's reset see the same memory.
 
-:func:`attitude_start_kernel` is the start of episodes after a reset (``Task.start_episodes``): the
-twin of ``AttitudeTask.after_reset`` for the reset rows, then every env's errors and observation [N, 15]
-(written by the same ``write_observation`` as the step's).
+:class:`FusedAttitudeStep` (a ``warp_common.FusedStep``) binds the views once, records the launch (one
+per CPU slice of the engine) and replays it each step; per step it runs the action copy, with the random
+stream the draw of its float32 uniforms [N, 4] (every env's, whether or not its target expires) from the
+stream's generator, and the launch. The warp engine calls :func:`attitude_step` inside its own one-launch
+env step instead.
+
+:func:`attitude_start` starts the episodes after a reset (``Task.start_episodes``): the reset rows'
+buffers, then every env's errors and observation [N, 15] (written by the same :func:`write_observation`
+as the step's); :func:`attitude_observe` is the observation of a given (measured) state
+(``Task.observe``).
 """
 
 from __future__ import annotations
@@ -67,7 +74,7 @@ class AttitudeBuffers:
 
 @wp.struct
 class AttitudeConstants:
-    """Config, stream and airframe constants, each the float32 the torch step's scalar or tensor holds."""
+    """Config, stream and airframe constants, float32."""
 
     control_dt: float
     random: int  # 1: RandomCommandStream, 0: maneuver table
@@ -106,7 +113,10 @@ def clamp_vec3_keep_nan(v: wp.vec3, lo: wp.vec3, hi: wp.vec3) -> wp.vec3:
 
 @wp.func
 def random_stream_step(buf: AttitudeBuffers, c: AttitudeConstants, i: int) -> wp.vec3:
-    """One ``RandomCommandStream.step`` of env i; returns the new command (phi*, hdot*, V_a*)."""
+    """One step of env i's random command stream: its timer runs down by the stream's dt; on expiry a
+    new target in [low, high] and a new hold time come from the step's uniforms ``buf.draws[i]``; the
+    command slews toward the target by at most rate x dt per component. Returns the new command
+    (phi*, hdot*, V_a*)."""
     timer = buf.stream_timer[i] - c.stream_dt
     target = buf.stream_target[i]
     if timer <= 0.0:
@@ -124,8 +134,8 @@ def random_stream_step(buf: AttitudeBuffers, c: AttitudeConstants, i: int) -> wp
 @wp.func
 def write_observation(f: FlightState, c: AttitudeConstants, errors: wp.vec3, previous_action: wp.vec4,
                       observation: wp.array2d(dtype=wp.float32), i: int):
-    """observation[i] <- the clipped observation [15] of env i (twin of ``AttitudeTask.observe``) from
-    its flight state, tracking errors (e_phi, e_hdot, e_Va) and previous action."""
+    """observation[i] <- the clipped observation [15] of env i (the task's module docstring) from its
+    flight state, tracking errors (e_phi, e_hdot, e_Va) and previous action."""
     lim = c.observation_clip
     for k in range(3):
         observation[i, k] = clip(errors[k] / c.error_scale[k], lim)
@@ -141,7 +151,8 @@ def write_observation(f: FlightState, c: AttitudeConstants, errors: wp.vec3, pre
 
 @wp.func
 def tracking_errors(f: FlightState, commanded: wp.vec3) -> wp.vec3:
-    """(e_phi, e_hdot, e_Va) of the flight state against the command (twin of ``_update_errors``)."""
+    """(e_phi, e_hdot, e_Va) = (phi, hdot, V_a) - (phi*, hdot*, V_a*) of the flight state against the
+    command, hdot = -v_z."""
     return wp.vec3(f.euler[0], -f.velocity_ned[2], f.airspeed) - commanded
 
 
@@ -183,9 +194,8 @@ def attitude_step(sim: SimulatorViews, buf: AttitudeBuffers, c: AttitudeConstant
 def attitude_start(sim: SimulatorViews, buf: AttitudeBuffers, c: AttitudeConstants,
                    observation: wp.array2d(dtype=wp.float32), mask: wp.array(dtype=wp.bool), i: int):
     """The start of env i's episode when ``mask[i]``, its physics reset and its stream's reset already
-    written (twin of ``AttitudeTask.after_reset``: clock and previous action zeroed, the stream's or
-    the table's current command), then, every env, the tracking errors and the observation [N, 15]
-    (twin of ``AttitudeTask.observe``)."""
+    written (clock and previous action zeroed, the command set to the stream's or the table's current
+    one), then, every env, the tracking errors and the observation [N, 15]."""
     f = flight_state(sim, i)
     if mask[i]:
         buf.time[i] = 0.0
@@ -203,7 +213,7 @@ def attitude_start(sim: SimulatorViews, buf: AttitudeBuffers, c: AttitudeConstan
 def attitude_observe(f: FlightState, buf: AttitudeBuffers, c: AttitudeConstants,
                      observation: wp.array2d(dtype=wp.float32), i: int):
     """The observation [N, D] of env i's flight state ``f`` (e.g. a measured one) with the task's current
-    buffers, no side effect (twin of ``AttitudeTask.observe``)."""
+    buffers, no side effect."""
     write_observation(f, c, tracking_errors(f, buf.commanded[i]), buf.previous_action[i], observation, i)
 
 
@@ -281,7 +291,8 @@ class FusedAttitudeStep(FusedStep):
         }), task), attitude_constants(task)]
 
     def draw(self) -> None:
-        """The random stream's uniforms [N, 4], drawn as ``RandomCommandStream._draw`` does each step."""
+        """With a random stream: the step's float32 uniforms [N, 4] (every env's, whether or not its
+        target expires), from the stream's generator."""
         stream = self.task.random_stream
         if stream is not None:
             torch.rand(self.draws.shape, generator=stream.generator, device=self.draws.device,

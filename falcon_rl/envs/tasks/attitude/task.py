@@ -25,8 +25,9 @@ sigma_Va = 0.05 cruise, V_safe = 1.3 V_stall.
 Termination: ground contact, |alpha| > 1.5 alpha_stall or V_a < V_stall; truncation at the horizon.
 Published under ("task", ...): bank/climb_rate/airspeed commands and their errors.
 
-On the warp backend the env's step runs :meth:`AttitudeTask.fused_step`: all of the above after the
-physics in one Warp kernel (``attitude.kernels``), the random stream's draws included.
+The step, the start of episodes and the observation are written once, as Warp functions
+(``attitude.kernels``), the random stream's process included (its uniforms drawn from the stream's
+generator before each launch); every engine runs them.
 """
 
 from __future__ import annotations
@@ -36,13 +37,11 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, ClassVar
 
 import torch
-from tensordict import TensorDictBase
 
 from ....constants import DEG
 from ....physics import Simulator
-from ....physics import state as S
 from ...maneuvers import RandomCommandStream, maneuver_stream
-from ..base import Task, TaskConfig, airspeed_margin_penalty, gaussian
+from ..base import Task, TaskConfig
 
 if TYPE_CHECKING:
     from ..warp_common import FusedStep
@@ -86,7 +85,7 @@ class AttitudeTask(Task):
                  control_dt: float, ground_effect: bool | str = True):
         super().__init__(config, sim, generator, control_dt, ground_effect)
         env = self.airframe.envelope
-        n, kw = self.num_envs, {"device": self.device, "dtype": self.dtype}
+        n, kw = self.num_envs, {"device": self.device, "dtype": self.buffer_dtype}
         self.climb_scale = float(env.climb_rate_limit)
         self.safe_airspeed = config.safe_airspeed_factor * env.stall_speed
         self.step_index = torch.zeros(n, dtype=torch.long, device=self.device)
@@ -120,75 +119,20 @@ class AttitudeTask(Task):
                                                                       dtype=self.dtype),
                 "height": height}
 
-    def after_reset(self, state: TensorDictBase, mask: torch.Tensor) -> None:
-        super().after_reset(state, mask)
-        self.commanded.copy_(torch.where(mask[:, None], self._current_command(), self.commanded))
-        self._update_errors(state)
-
-    # ------------------------------------------------------------------ command stream
-    def _current_command(self) -> torch.Tensor:
-        if self.random_stream is not None:
-            return self.random_stream.command
-        assert self.table is not None
-        return self.table[self.step_index.clamp(max=self.table.shape[0] - 1)]
-
-    def advance(self) -> None:
-        super().advance()
-        self.step_index += 1
-        if self.random_stream is not None:
-            self.random_stream.step()
-        self.commanded.copy_(self._current_command())
-
-    def _update_errors(self, state: TensorDictBase) -> None:
-        climb_rate = -state["velocity_ned"][:, S.DOWN]
-        actual = torch.stack([state["euler"][:, S.ROLL], climb_rate, state["airspeed"]], dim=-1)
-        self.errors.copy_(actual - self.commanded)
-
-    # ------------------------------------------------------------------ MDP
-    def update(self, state: TensorDictBase) -> None:
-        self._update_errors(state)
-
-    def observe(self, state: TensorDictBase) -> torch.Tensor:
-        # Errors from the state being observed (measured when a sensor chain is on), not the
-        # true-state errors that the reward and metrics use.
-        climb_rate = -state["velocity_ned"][:, S.DOWN]
-        actual = torch.stack([state["euler"][:, S.ROLL], climb_rate, state["airspeed"]], dim=-1)
-        errors = actual - self.commanded
-        rates = state["angular_rate_body"] / 2.0
-        euler = state["euler"][:, :2] / (math.pi / 4)
-        air = torch.stack([state["alpha"], state["beta"]], dim=-1) / (20.0 * DEG)
-        v_z = state["velocity_ned"][:, S.DOWN, None] / self.climb_scale
-        obs = torch.cat([errors / self.error_scale, euler, rates, air, v_z, self.previous_action],
-                        dim=-1)
-        return obs.clamp(-self.observation_clip, self.observation_clip)
-
-    def reward_terms_of(self, state: TensorDictBase, action: torch.Tensor) -> tuple[torch.Tensor, ...]:
-        cfg = self.config
-        env = self.airframe.envelope
-        e_phi, e_hdot, e_v = self.errors.unbind(-1)
-        action_rate = ((action - self.previous_action) ** 2).sum(-1)
-        return (cfg.w_bank * gaussian(e_phi, cfg.sigma_bank),
-                cfg.w_climb * gaussian(e_hdot, cfg.sigma_climb_fraction * env.climb_rate_limit),
-                cfg.w_airspeed * gaussian(e_v, cfg.sigma_airspeed_fraction * env.cruise_speed),
-                -(cfg.w_energy * airspeed_margin_penalty(state["airspeed"], self.safe_airspeed)),
-                -(cfg.w_smooth * action_rate))
-
-    # ------------------------------------------------------------------ fused step
-    def fused_stepper(self) -> FusedStep | None:
-        """:meth:`step` as one Warp kernel on the warp backend (``attitude.kernels``; None elsewhere, or
-        when a subclass overrides a method of the step or the stream is not a ``RandomCommandStream``):
-        (observation [N, 15], reward [N], reason [N] long), buffers overwritten by the next call."""
+    # ------------------------------------------------------------------ step
+    def fused_stepper(self) -> FusedStep:
+        """The task's step, its start and its observation (``attitude.kernels``, :class:`FusedAttitudeStep`):
+        (observation [N, 15], reward [N], reason [N] long), buffers overwritten by the next call. The
+        random stream's process is the kernel's: a stream of another class than ``RandomCommandStream``
+        is refused (TypeError)."""
         stream = self.random_stream
-        custom_stream = stream is not None and type(stream) is not RandomCommandStream
-        if not self.sim.engine.runs_task_kernels or custom_stream:
-            return None
+        if stream is not None and type(stream) is not RandomCommandStream:
+            raise TypeError(f"the attitude task's Warp step runs the RandomCommandStream process; a "
+                            f"{type(stream).__name__} cannot be stepped (change the kernel's stream_step)")
         from ..warp_common import fused_stepper
         from .kernels import FusedAttitudeStep
 
-        return fused_stepper(self, AttitudeTask, _FUSED_METHODS, FusedAttitudeStep)
-
-    def info(self) -> dict[str, torch.Tensor]:
-        return {key: value.clone() for key, value in self.info_views().items()}
+        return fused_stepper(self, FusedAttitudeStep)
 
     def info_views(self) -> dict[str, torch.Tensor]:
         return {
@@ -199,9 +143,3 @@ class AttitudeTask(Task):
             "climb_rate_error": self.errors[:, 1],
             "airspeed_error": self.errors[:, 2],
         }
-
-
-#: The methods :meth:`AttitudeTask.fused_step` fuses: a subclass that overrides one falls back to ``step``.
-_FUSED_METHODS: tuple[str, ...] = ("step", "advance", "update", "reward", "reward_terms_of", "observe",
-                                   "termination_checks",
-                                   "termination_reason", "_current_command", "_update_errors")

@@ -1,14 +1,20 @@
-"""The path-following task's step in one Warp kernel (``PathFollowingTask.fused_step`` on the warp
-backend).
+"""The path-following task's step, written once as Warp functions (``PathFollowingTask.fused_stepper``).
 
-:func:`path_following_step_kernel` does for env i what ``PathFollowingTask.step(sim.state, action)``
-does: it advances the clock, computes the cross-track, course and altitude errors from
-``warp_common.flight_state``, and writes the reward, the termination reason ("lost" after the shared
-reasons) and the clipped observation. The step draws no random numbers.
+:func:`path_following_step` is the task's step for env i after the physics (the equations of the task's
+module docstring): it advances the clock, computes the cross-track, course and altitude errors from
+``flight_state`` (the twins of the engine's evaluation kernel), and writes the named reward terms, the
+reward, the termination reason ("lost" after the shared reasons) and the clipped observation. The task's
+buffers are zero-copy Warp views of its torch tensors, so ``info()`` sees the same memory. The step
+draws no random numbers.
 
-:func:`path_following_start_kernel` is the start of episodes after a reset (``Task.start_episodes``): the
-twin of ``PathFollowingTask.after_reset`` for the reset rows, then every env's errors and observation [N, 17]
-(written by the same ``write_observation`` as the step's).
+:class:`FusedPathFollowingStep` (a ``warp_common.FusedStep``) binds the views once, records the launch
+(one per CPU slice of the engine) and replays it each step (the action copy and the launch). The warp
+engine calls :func:`path_following_step` inside its own one-launch env step instead.
+
+:func:`path_following_start` starts the episodes after a reset (``Task.start_episodes``): the reset
+rows' buffers, then every env's errors and observation [N, 17] (written by the same
+:func:`write_observation` as the step's); :func:`path_following_observe` is the observation of a given
+(measured) state (``Task.observe``).
 """
 
 from __future__ import annotations
@@ -58,7 +64,7 @@ class PathFollowingBuffers:
 
 @wp.struct
 class PathFollowingConstants:
-    """Config and airframe constants, each the float32 the torch step's scalar becomes."""
+    """Config and airframe constants, float32."""
 
     control_dt: float
     path_height: float
@@ -84,8 +90,8 @@ class PathFollowingConstants:
 
 @wp.func
 def path_errors(f: FlightState, buf: PathFollowingBuffers, c: PathFollowingConstants, i: int) -> wp.vec3:
-    """buf.errors[i] <- (e_y, chi_err, e_h) of env i against its path (twin of
-    ``PathFollowingTask.update``); returns them."""
+    """buf.errors[i] <- (e_y, chi_err, e_h) of env i against its path (the task's module docstring);
+    returns them."""
     point = buf.path_point[i]
     course = buf.path_course[i]
     rel_north = f.position_ned[0] - point[0]
@@ -101,8 +107,8 @@ def path_errors(f: FlightState, buf: PathFollowingBuffers, c: PathFollowingConst
 @wp.func
 def write_observation(f: FlightState, c: PathFollowingConstants, errors: wp.vec3, previous_action: wp.vec4,
                       observation: wp.array2d(dtype=wp.float32), i: int):
-    """observation[i] <- the clipped observation [17] of env i (twin of ``PathFollowingTask.observe``)
-    from its flight state, path errors and previous action."""
+    """observation[i] <- the clipped observation [17] of env i (the task's module docstring) from its
+    flight state, path errors (e_y, chi_err, e_h) and previous action."""
     lim = c.observation_clip
     observation[i, 0] = clip(errors[0] / 50.0, lim)
     observation[i, 1] = clip(wp.sin(errors[1]), lim)
@@ -149,9 +155,8 @@ def path_following_step(sim: SimulatorViews, buf: PathFollowingBuffers, c: PathF
 @wp.func
 def path_following_start(sim: SimulatorViews, buf: PathFollowingBuffers, c: PathFollowingConstants,
                          observation: wp.array2d(dtype=wp.float32), mask: wp.array(dtype=wp.bool), i: int):
-    """The start of env i's episode when ``mask[i]``, its physics reset already written (twin of
-    ``PathFollowingTask.after_reset``: clock and previous action zeroed), then, every env, the path
-    errors and the observation [N, 17] (twin of ``PathFollowingTask.observe``)."""
+    """The start of env i's episode when ``mask[i]``, its physics reset already written (clock and
+    previous action zeroed), then, every env, the path errors and the observation [N, 17]."""
     f = flight_state(sim, i)
     if mask[i]:
         buf.time[i] = 0.0
@@ -163,7 +168,7 @@ def path_following_start(sim: SimulatorViews, buf: PathFollowingBuffers, c: Path
 def path_following_observe(f: FlightState, buf: PathFollowingBuffers, c: PathFollowingConstants,
                            observation: wp.array2d(dtype=wp.float32), i: int):
     """The observation [N, D] of env i's flight state ``f`` (e.g. a measured one) with the task's current
-    buffers, no side effect (twin of ``PathFollowingTask.observe``)."""
+    buffers, no side effect."""
     write_observation(f, c, buf.errors[i], buf.previous_action[i], observation, i)
 
 

@@ -21,23 +21,20 @@ Termination: ground contact, stall, or |e_y| > ``lost_distance``. Published: cro
 course_error, altitude_error and the path: path_point [2] (north, east, m), path_course (rad),
 path_height (m).
 
-On the warp backend the env's step runs :meth:`PathFollowingTask.fused_step`: all of the above after
-the physics in one Warp kernel (``path_following.kernels``).
+The step, the start of episodes and the observation are written once, as Warp functions
+(``path_following.kernels``); every engine runs them.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, ClassVar
 
 import torch
-from tensordict import TensorDictBase
 
 from ....constants import DEG
 from ....physics import Simulator
-from ....physics import state as S
-from ..base import Task, TaskConfig, airspeed_margin_penalty, gaussian, wrap_angle
+from ..base import Task, TaskConfig
 
 if TYPE_CHECKING:
     from ..warp_common import FusedStep
@@ -84,7 +81,7 @@ class PathFollowingTask(Task):
     def __init__(self, config: PathFollowingConfig, sim: Simulator, generator: torch.Generator,
                  control_dt: float, ground_effect: bool | str = True):
         super().__init__(config, sim, generator, control_dt, ground_effect)
-        n, kw = self.num_envs, {"device": self.device, "dtype": self.dtype}
+        n, kw = self.num_envs, {"device": self.device, "dtype": self.buffer_dtype}
         self.path_point = torch.zeros(n, 2, **kw)  # (north, east) m
         self.path_course = torch.zeros(n, **kw)
         self.errors = torch.zeros(n, 3, **kw)  # (e_y, chi_err, e_h)
@@ -103,68 +100,18 @@ class PathFollowingTask(Task):
         return {**self.trim_initial(), "position_ned": torch.zeros(3, device=self.device, dtype=self.dtype),
                 "height": height}
 
-    def after_reset(self, state: TensorDictBase, mask: torch.Tensor) -> None:
-        super().after_reset(state, mask)
-        self.update(state)
-
-    def update(self, state: TensorDictBase) -> None:
-        rel = state["position_ned"][:, :2] - self.path_point
-        sin_c, cos_c = torch.sin(self.path_course), torch.cos(self.path_course)
-        cross_track = -sin_c * rel[:, S.NORTH] + cos_c * rel[:, S.EAST]
-        v = state["velocity_ned"]
-        course_error = wrap_angle(torch.atan2(v[:, S.EAST], v[:, S.NORTH]) - self.path_course)
-        altitude_error = state["height"] - self.config.initial_height
-        self.errors.copy_(torch.stack([cross_track, course_error, altitude_error], dim=-1))
-
-    def observe(self, state: TensorDictBase) -> torch.Tensor:
-        cfg = self.config
-        env = self.airframe.envelope
-        e_y, chi, e_h = self.errors.unbind(-1)
-        scalars = torch.stack([
-            e_y / 50.0, torch.sin(chi), torch.cos(chi), e_h / 25.0,
-            state["velocity_ned"][:, S.DOWN] / env.climb_rate_limit,
-            (state["airspeed"] - env.cruise_speed) / (cfg.airspeed_scale * env.cruise_speed),
-            state["euler"][:, S.ROLL] / (math.pi / 4), state["euler"][:, S.PITCH] / (math.pi / 4),
-            state["alpha"] / (20.0 * DEG), state["beta"] / (20.0 * DEG),
-        ], dim=-1)
-        obs = torch.cat([scalars, state["angular_rate_body"] / 2.0, self.previous_action], dim=-1)
-        return obs.clamp(-self.observation_clip, self.observation_clip)
-
-    def reward_terms_of(self, state: TensorDictBase, action: torch.Tensor) -> tuple[torch.Tensor, ...]:
-        cfg = self.config
-        e_y, chi, e_h = self.errors.unbind(-1)
-        action_rate = ((action - self.previous_action) ** 2).sum(-1)
-        return (cfg.w_cross_track * gaussian(e_y, cfg.sigma_cross_track),
-                cfg.w_course * gaussian(chi, cfg.sigma_course),
-                cfg.w_altitude * gaussian(e_h, cfg.sigma_altitude),
-                -(cfg.w_energy * airspeed_margin_penalty(state["airspeed"], self.safe_airspeed)),
-                -(cfg.w_smooth * action_rate))
-
-    def termination_checks(self, state: TensorDictBase) -> dict[str, torch.Tensor]:
-        """The shared checks plus "lost": cross-track error beyond ``lost_distance``."""
-        lost = self.errors[:, 0].abs() > self.config.lost_distance
-        return {**super().termination_checks(state), "lost": lost}
-
-    def fused_stepper(self) -> FusedStep | None:
-        """:meth:`step` as one Warp kernel on the warp backend (``path_following.kernels``; None elsewhere,
-        or when a subclass overrides a method of the step): (observation [N, 17], reward [N], reason [N]
-        long), buffers overwritten by the next call."""
-        if not self.sim.engine.runs_task_kernels:
-            return None
+    def fused_stepper(self) -> FusedStep:
+        """The task's step, its start and its observation (``path_following.kernels``,
+        :class:`FusedPathFollowingStep`): (observation [N, 17], reward [N], reason [N] long), buffers
+        overwritten by the next call."""
         from ..warp_common import fused_stepper
         from .kernels import FusedPathFollowingStep
 
-        return fused_stepper(self, PathFollowingTask, _FUSED_METHODS, FusedPathFollowingStep)
+        return fused_stepper(self, FusedPathFollowingStep)
 
     def info(self) -> dict[str, torch.Tensor]:
-        return {"cross_track_error": self.errors[:, 0].clone(), "course_error": self.errors[:, 1].clone(),
-                "altitude_error": self.errors[:, 2].clone(), "path_point": self.path_point.clone(),
-                "path_course": self.path_course.clone(),
+        info = {"cross_track_error": self.errors[:, 0], "course_error": self.errors[:, 1],
+                "altitude_error": self.errors[:, 2], "path_point": self.path_point,
+                "path_course": self.path_course,
                 "path_height": torch.full_like(self.path_course, self.config.initial_height)}
-
-
-#: The methods :meth:`PathFollowingTask.fused_step` fuses: a subclass that overrides one falls back to
-#: ``step``.
-_FUSED_METHODS: tuple[str, ...] = ("step", "advance", "update", "reward", "reward_terms_of", "observe",
-                                   "termination_checks",
-                                   "termination_reason")
+        return {key: value.to(self.dtype, copy=True) for key, value in info.items()}

@@ -1,14 +1,20 @@
-"""The trajectory task's step in one Warp kernel (``TrajectoryTask.fused_step`` on the warp backend).
+"""The trajectory task's step, written once as Warp functions (``TrajectoryTask.fused_stepper``).
 
-:func:`trajectory_step_kernel` does for env i what ``TrajectoryTask.step(sim.state, action)`` does: it
-advances the clock and the reference point along its helix arc (closed form), rotates the position
-and velocity errors into the heading frame using ``warp_common.flight_state``, and writes the reward,
-the termination reason ("lost" after the shared reasons) and the clipped observation. The step draws
-no random numbers.
+:func:`trajectory_step` is the task's step for env i after the physics (the equations of the task's
+module docstring): it advances the clock and the reference point along its helix arc (closed form),
+rotates the position and velocity errors into the heading frame using ``flight_state`` (the twins of
+the engine's evaluation kernel), and writes the named reward terms, the reward, the termination reason
+("lost" after the shared reasons) and the clipped observation. The task's buffers are zero-copy Warp
+views of its torch tensors, so ``info()`` sees the same memory. The step draws no random numbers.
 
-:func:`trajectory_start_kernel` is the start of episodes after a reset (``Task.start_episodes``): the
-twin of ``TrajectoryTask.after_reset`` for the reset rows, then every env's errors and observation [N, 17]
-(written by the same ``write_observation`` as the step's).
+:class:`FusedTrajectoryStep` (a ``warp_common.FusedStep``) binds the views once, records the launch
+(one per CPU slice of the engine) and replays it each step (the action copy and the launch). The warp
+engine calls :func:`trajectory_step` inside its own one-launch env step instead.
+
+:func:`trajectory_start` starts the episodes after a reset (``Task.start_episodes``): the reset rows'
+buffers, then every env's reference point, errors and observation [N, 17] (written by the same
+:func:`write_observation` as the step's); :func:`trajectory_observe` is the observation of a given
+(measured) state (``Task.observe``).
 """
 
 from __future__ import annotations
@@ -63,7 +69,7 @@ class TrajectoryBuffers:
 
 @wp.struct
 class TrajectoryConstants:
-    """Config and airframe constants, each the float32 the torch step's scalar becomes."""
+    """Config and airframe constants, float32."""
 
     control_dt: float
     speed: float  # cruise speed V of the reference
@@ -92,7 +98,7 @@ def heading_frame(e: wp.vec3, sin_yaw: float, cos_yaw: float) -> wp.vec3:
 @wp.func
 def reference_point(buf: TrajectoryBuffers, c: TrajectoryConstants, time: float, i: int):
     """buf.reference_position[i], buf.reference_velocity[i] <- p_ref and v_ref of env i at ``time``
-    (twin of ``TrajectoryTask.advance_reference``)."""
+    (the helix arc of the task's module docstring, closed form)."""
     radius = buf.radius[i]
     turn = buf.turn[i]
     climb = buf.climb[i]
@@ -105,8 +111,8 @@ def reference_point(buf: TrajectoryBuffers, c: TrajectoryConstants, time: float,
 
 @wp.func
 def update_errors(f: FlightState, buf: TrajectoryBuffers, i: int):
-    """The position and velocity errors of env i, NED and in the heading frame, into its buffers (twin
-    of ``TrajectoryTask.update``)."""
+    """The errors of env i into its buffers: e_p = p - p_ref (NED, ``position_error_ned``), and e_p and
+    e_v = v - v_ref rotated into the heading frame (``position_error``, ``velocity_error``)."""
     yaw = f.euler[2]
     sin_yaw = wp.sin(yaw)
     cos_yaw = wp.cos(yaw)
@@ -120,8 +126,8 @@ def update_errors(f: FlightState, buf: TrajectoryBuffers, i: int):
 def write_observation(f: FlightState, c: TrajectoryConstants, position_error: wp.vec3,
                       velocity_error: wp.vec3, previous_action: wp.vec4,
                       observation: wp.array2d(dtype=wp.float32), i: int):
-    """observation[i] <- the clipped observation [17] of env i (twin of ``TrajectoryTask.observe``)
-    from its flight state, heading-frame errors and previous action."""
+    """observation[i] <- the clipped observation [17] of env i (the task's module docstring) from its
+    flight state, heading-frame errors and previous action."""
     lim = c.observation_clip
     for k in range(3):
         observation[i, k] = clip(position_error[k] / 25.0, lim)
@@ -165,9 +171,9 @@ def trajectory_step(sim: SimulatorViews, buf: TrajectoryBuffers, c: TrajectoryCo
 @wp.func
 def trajectory_start(sim: SimulatorViews, buf: TrajectoryBuffers, c: TrajectoryConstants,
                      observation: wp.array2d(dtype=wp.float32), mask: wp.array(dtype=wp.bool), i: int):
-    """The start of env i's episode when ``mask[i]``, its physics reset already written (twin of
-    ``TrajectoryTask.after_reset``: clock and previous action zeroed), then, every env, the reference
-    point at its clock, the errors and the observation [N, 17] (twin of ``TrajectoryTask.observe``)."""
+    """The start of env i's episode when ``mask[i]``, its physics reset already written (clock and
+    previous action zeroed), then, every env, the reference point at its clock, the errors and the
+    observation [N, 17]."""
     f = flight_state(sim, i)
     if mask[i]:
         buf.time[i] = 0.0
@@ -182,7 +188,7 @@ def trajectory_start(sim: SimulatorViews, buf: TrajectoryBuffers, c: TrajectoryC
 def trajectory_observe(f: FlightState, buf: TrajectoryBuffers, c: TrajectoryConstants,
                        observation: wp.array2d(dtype=wp.float32), i: int):
     """The observation [N, D] of env i's flight state ``f`` (e.g. a measured one) with the task's current
-    buffers, no side effect (twin of ``TrajectoryTask.observe``)."""
+    buffers, no side effect."""
     write_observation(f, c, buf.position_error[i], buf.velocity_error[i], buf.previous_action[i],
                       observation, i)
 

@@ -23,23 +23,20 @@ sigma_V = ``airspeed_scale`` x cruise. Action [delta_e, delta_a, delta_r, delta_
 Termination: ground contact, stall, or |e_p| > ``lost_distance``. Published: position_error
 (|e_p|), position_error_ned [3], reference_position [3], reference_velocity [3].
 
-On the warp backend the env's step runs :meth:`TrajectoryTask.fused_step`: all of the above after the
-physics in one Warp kernel (``trajectory.kernels``).
+The step, the start of episodes and the observation are written once, as Warp functions
+(``trajectory.kernels``); every engine runs them.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, ClassVar
 
 import torch
-from tensordict import TensorDictBase
 
-from ....constants import DEG, G0
+from ....constants import G0
 from ....physics import Simulator
-from ....physics import state as S
-from ..base import Task, TaskConfig, airspeed_margin_penalty, gaussian
+from ..base import Task, TaskConfig
 
 if TYPE_CHECKING:
     from ..warp_common import FusedStep
@@ -88,7 +85,7 @@ class TrajectoryTask(Task):
     def __init__(self, config: TrajectoryConfig, sim: Simulator, generator: torch.Generator,
                  control_dt: float, ground_effect: bool | str = True):
         super().__init__(config, sim, generator, control_dt, ground_effect)
-        n, kw = self.num_envs, {"device": self.device, "dtype": self.dtype}
+        n, kw = self.num_envs, {"device": self.device, "dtype": self.buffer_dtype}
         self.speed = float(self.airframe.envelope.cruise_speed)
         self.start = torch.zeros(n, 3, **kw)  # p_0, NED
         self.radius = torch.ones(n, **kw)
@@ -119,78 +116,17 @@ class TrajectoryTask(Task):
         return {**self.trim_initial(), "position_ned": torch.zeros(3, device=self.device, dtype=self.dtype),
                 "height": height}
 
-    def after_reset(self, state: TensorDictBase, mask: torch.Tensor) -> None:
-        super().after_reset(state, mask)
-        self.advance_reference()
-        self.update(state)
-
-    def advance_reference(self) -> None:
-        """p_ref and v_ref at the task time (closed form)."""
-        angle = self.speed / self.radius * self.time
-        s, c = torch.sin(angle), torch.cos(angle)
-        offset = torch.stack([self.radius * s, self.turn * self.radius * (1.0 - c), -self.climb * self.time],
-                             dim=-1)
-        self.reference_position.copy_(self.start + offset)
-        self.reference_velocity.copy_(torch.stack([self.speed * c, self.turn * self.speed * s, -self.climb],
-                                                  dim=-1))
-
-    def advance(self) -> None:
-        super().advance()
-        self.advance_reference()
-
-    def update(self, state: TensorDictBase) -> None:
-        yaw = state["euler"][:, S.YAW]
-        sin_y, cos_y = torch.sin(yaw), torch.cos(yaw)
-        e_p = state["position_ned"] - self.reference_position
-        e_v = state["velocity_ned"] - self.reference_velocity
-        self.position_error_ned.copy_(e_p)
-        for out, e in ((self.position_error, e_p), (self.velocity_error, e_v)):
-            north, east, down = e[:, S.NORTH], e[:, S.EAST], e[:, S.DOWN]
-            out.copy_(torch.stack([cos_y * north + sin_y * east, -sin_y * north + cos_y * east, down],
-                                  dim=-1))
-
-    def observe(self, state: TensorDictBase) -> torch.Tensor:
-        sigma_v = self.config.airspeed_scale * self.speed
-        air = torch.stack([state["alpha"], state["beta"]], dim=-1) / (20.0 * DEG)
-        obs = torch.cat([self.position_error / 25.0, self.velocity_error / sigma_v,
-                         state["euler"][:, :2] / (math.pi / 4), state["angular_rate_body"] / 2.0, air,
-                         self.previous_action], dim=-1)
-        return obs.clamp(-self.observation_clip, self.observation_clip)
-
-    def reward_terms_of(self, state: TensorDictBase, action: torch.Tensor) -> tuple[torch.Tensor, ...]:
-        cfg = self.config
-        distance = torch.linalg.vector_norm(self.position_error, dim=-1)
-        speed_error = torch.linalg.vector_norm(self.velocity_error, dim=-1)
-        action_rate = ((action - self.previous_action) ** 2).sum(-1)
-        return (cfg.w_position * gaussian(distance, cfg.sigma_position),
-                cfg.w_velocity * gaussian(speed_error, cfg.sigma_velocity_fraction * self.speed),
-                -(cfg.w_energy * airspeed_margin_penalty(state["airspeed"], self.safe_airspeed)),
-                -(cfg.w_smooth * action_rate))
-
-    def termination_checks(self, state: TensorDictBase) -> dict[str, torch.Tensor]:
-        """The shared checks plus "lost": 3D distance to the reference beyond ``lost_distance``."""
-        distance = torch.linalg.vector_norm(self.position_error, dim=-1)
-        return {**super().termination_checks(state), "lost": distance > self.config.lost_distance}
-
-    def fused_stepper(self) -> FusedStep | None:
-        """:meth:`step` as one Warp kernel on the warp backend (``trajectory.kernels``; None elsewhere, or
-        when a subclass overrides a method of the step): (observation [N, 17], reward [N], reason [N]
-        long), buffers overwritten by the next call."""
-        if not self.sim.engine.runs_task_kernels:
-            return None
+    def fused_stepper(self) -> FusedStep:
+        """The task's step, its start and its observation (``trajectory.kernels``,
+        :class:`FusedTrajectoryStep`): (observation [N, 17], reward [N], reason [N] long), buffers
+        overwritten by the next call."""
         from ..warp_common import fused_stepper
         from .kernels import FusedTrajectoryStep
 
-        return fused_stepper(self, TrajectoryTask, _FUSED_METHODS, FusedTrajectoryStep)
+        return fused_stepper(self, FusedTrajectoryStep)
 
     def info(self) -> dict[str, torch.Tensor]:
-        return {"position_error": torch.linalg.vector_norm(self.position_error, dim=-1),
-                "position_error_ned": self.position_error_ned.clone(),
-                "reference_position": self.reference_position.clone(),
-                "reference_velocity": self.reference_velocity.clone()}
-
-
-#: The methods :meth:`TrajectoryTask.fused_step` fuses: a subclass that overrides one falls back to ``step``.
-_FUSED_METHODS: tuple[str, ...] = ("step", "advance", "advance_reference", "update", "reward",
-                                   "reward_terms_of", "observe",
-                                   "termination_checks", "termination_reason")
+        info = {"position_error": torch.linalg.vector_norm(self.position_error, dim=-1),
+                "position_error_ned": self.position_error_ned, "reference_position": self.reference_position,
+                "reference_velocity": self.reference_velocity}
+        return {key: value.to(self.dtype, copy=True) for key, value in info.items()}
