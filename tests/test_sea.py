@@ -1,7 +1,8 @@
-"""The sea surface (``physics.sea``): sea-state heights, the spectra's published properties (the
-Pierson-Moskowitz Hs and Tp of a wind, the JONSWAP normalisation), and the sampled wave fields'
-statistics: Hs = 4 sqrt(m0) of long records at a point within 2 %, the record's Welch spectrum against
-the target, deep-water dispersion, the spreading, seeding and the orbital flow's decay."""
+"""The sea surface (``physics.sea``) and its Warp twins: sea-state heights, the spectra's published
+properties (the Pierson-Moskowitz Hs and Tp of a wind, the JONSWAP normalisation), the sampled wave
+fields' statistics (Hs = 4 sqrt(m0) of long records at a point within 2 %, the record's Welch spectrum
+against the target), deep-water dispersion, the spreading, seeding, the orbital flow's decay and the
+Warp twins' parity."""
 
 from __future__ import annotations
 
@@ -10,16 +11,23 @@ import math
 import numpy as np
 import pytest
 import torch
+import warp as wp
 from scipy.signal import welch
 
 from falcon_rl.constants import G0
+from falcon_rl.physics._warp import init_warp
 from falcon_rl.physics.sea import (
     SEA_STATE_HS,
+    SeaFieldWp,
     SeaState,
     fully_developed_period,
     jonswap,
     pierson_moskowitz_wind,
     sample_sea,
+    sea_elevation_rate_wp,
+    sea_elevation_wp,
+    sea_field_views,
+    sea_orbital_velocity_wp,
     sea_state_height,
 )
 
@@ -157,3 +165,34 @@ def test_fields_are_seeded_per_env_and_a_flat_sea_is_flat():
     assert flat.elevation(torch.zeros(4), torch.zeros(4), 5.0).abs().max() == 0
     with pytest.raises(ValueError, match="at least 64 components"):
         sample_sea(sea, 4, generator(9), components=32)
+
+
+@wp.kernel(module="unique")
+def evaluate_sea(sea: SeaFieldWp, points: wp.array(dtype=wp.vec4), out: wp.array2d(dtype=wp.float32)):
+    """out[i] <- (eta, d(eta)/dt, orbital velocity [3]) of env i at points[i] = (north, east, height, t)."""
+    i = wp.tid()
+    p = points[i]
+    out[i, 0] = sea_elevation_wp(sea, i, p[0], p[1], p[3])
+    out[i, 1] = sea_elevation_rate_wp(sea, i, p[0], p[1], p[3])
+    flow = sea_orbital_velocity_wp(sea, i, p[0], p[1], p[2], p[3])
+    out[i, 2] = flow[0]
+    out[i, 3] = flow[1]
+    out[i, 4] = flow[2]
+
+
+def test_the_warp_twins_evaluate_the_same_field():
+    init_warp()
+    n = 16
+    surface = sample_sea(SeaState.from_code(4, direction=0.4), n, generator(7))
+    points = torch.rand(n, 4, generator=generator(8)) * torch.tensor([200.0, 200.0, 3.0, 60.0])
+    out = torch.zeros(n, 5)
+    wp.launch(evaluate_sea, dim=n, inputs=[sea_field_views(surface), wp.from_torch(points, dtype=wp.vec4),
+                                           wp.from_torch(out)], device="cpu")
+    north, east, height, time = points.unbind(-1)
+    expected = torch.cat([surface.elevation(north, east, time)[:, None],
+                          surface.elevation_rate(north, east, time)[:, None],
+                          surface.orbital_velocity(north, east, height, time)], -1)
+    torch.testing.assert_close(out, expected, rtol=1e-4, atol=2e-4)
+    assert expected[:, 0].abs().max() > 0.5  # a real sea state 4 field, not zeros
+    with pytest.raises(ValueError, match="contiguous float32"):
+        sea_field_views(sample_sea(SeaState.from_code(4), 2, generator(7), dtype=torch.float64))

@@ -37,6 +37,9 @@ its inverse distribution: the record at a point then has variance sum a_k^2 / 2 
 Hs = 4 sqrt(m0), and its spectrum is S. eta is positive up, from the mean water level, in the NED
 frame's horizontal coordinates (north n, east e, m); ``SeaSurface`` evaluates eta, d(eta)/dt and the
 potential-flow orbital velocity of the water surface, decaying with height h above it as exp(-k h).
+The Warp twins (``sea_elevation_wp``, ``sea_elevation_rate_wp``, ``sea_orbital_velocity_wp``) evaluate
+the same sums for one env over :class:`SeaFieldWp`, zero-copy views of a float32 ``SeaSurface``
+(:func:`sea_field_views`).
 """
 
 from __future__ import annotations
@@ -47,6 +50,7 @@ from dataclasses import dataclass
 import torch
 
 from ..constants import G0
+from ._warp import warp_func, warp_struct, wp
 
 #: Significant wave height range (low, high) of each WMO sea-state code 0-6, m.
 SEA_STATE_HS: tuple[tuple[float, float], ...] = (
@@ -241,6 +245,93 @@ def sample_sea(sea: SeaState, num_envs: int, generator: torch.Generator, compone
     return SeaSurface(**{name: value.to(device=device, dtype=dtype) for name, value in out.items()})
 
 
-__all__ = ["BAND", "JONSWAP_GAMMA", "PM_PERIOD_FACTOR", "SEA_STATE_HS", "SeaState", "SeaSurface",
-           "fully_developed_period", "jonswap", "pierson_moskowitz_wind", "sample_sea", "sea_state_height",
-           "spreading_directions"]
+# ---------------------------------------------------------------------------------------- warp twins
+@warp_struct
+class SeaFieldWp:
+    """A ``SeaSurface``'s [N, K] float32 tensors as Warp arrays (zero-copy views)."""
+
+    amplitude: wp.array2d(dtype=wp.float32)
+    wavenumber: wp.array2d(dtype=wp.float32)
+    frequency: wp.array2d(dtype=wp.float32)
+    direction_cos: wp.array2d(dtype=wp.float32)
+    direction_sin: wp.array2d(dtype=wp.float32)
+    phase: wp.array2d(dtype=wp.float32)
+
+
+def sea_field_views(surface: SeaSurface) -> SeaFieldWp:
+    """:class:`SeaFieldWp` viewing ``surface``'s tensors (float32, contiguous; they must outlive the
+    launches that read the views)."""
+    views = SeaFieldWp()
+    for name in ("amplitude", "wavenumber", "frequency", "direction_cos", "direction_sin", "phase"):
+        tensor = getattr(surface, name)
+        if tensor.dtype != torch.float32 or not tensor.is_contiguous():
+            raise ValueError(f"a sea field's Warp views need contiguous float32 tensors, {name} is "
+                             f"{tensor.dtype}")
+        setattr(views, name, wp.from_torch(tensor))
+    return views
+
+
+@warp_func
+def sea_argument_wp(sea: SeaFieldWp, i: int, k: int, north: float, east: float, time: float) -> float:
+    """k_k (n cos theta_k + e sin theta_k) - w_k t + phi_k of env i's component k."""
+    travel = north * sea.direction_cos[i, k] + east * sea.direction_sin[i, k]
+    return sea.wavenumber[i, k] * travel - sea.frequency[i, k] * time + sea.phase[i, k]
+
+
+@warp_func
+def sea_elevation_wp(sea: SeaFieldWp, i: int, north: float, east: float, time: float) -> float:
+    """eta (m, up) of env i at (``north``, ``east``) and ``time`` (twin of ``SeaSurface.elevation``)."""
+    eta = float(0.0)  # noqa: UP018 (a mutable Warp local)
+    for k in range(sea.amplitude.shape[1]):
+        eta += sea.amplitude[i, k] * wp.cos(sea_argument_wp(sea, i, k, north, east, time))
+    return eta
+
+
+@warp_func
+def sea_elevation_rate_wp(sea: SeaFieldWp, i: int, north: float, east: float, time: float) -> float:
+    """d(eta)/dt (m/s) of env i (twin of ``SeaSurface.elevation_rate``)."""
+    rate = float(0.0)  # noqa: UP018 (a mutable Warp local)
+    for k in range(sea.amplitude.shape[1]):
+        argument = sea_argument_wp(sea, i, k, north, east, time)
+        rate += sea.amplitude[i, k] * sea.frequency[i, k] * wp.sin(argument)
+    return rate
+
+
+@warp_func
+def sea_orbital_velocity_wp(sea: SeaFieldWp, i: int, north: float, east: float, height: float,
+                            time: float) -> wp.vec3:
+    """NED orbital velocity (m/s) of env i at ``height`` (m) above the mean level (twin of
+    ``SeaSurface.orbital_velocity``)."""
+    along_n = float(0.0)  # noqa: UP018 (a mutable Warp local)
+    along_e = float(0.0)  # noqa: UP018
+    up = float(0.0)  # noqa: UP018
+    h = wp.max(height, 0.0)
+    for k in range(sea.amplitude.shape[1]):
+        argument = sea_argument_wp(sea, i, k, north, east, time)
+        decay = sea.amplitude[i, k] * sea.frequency[i, k] * wp.exp(-sea.wavenumber[i, k] * h)
+        along = decay * wp.cos(argument)
+        along_n += along * sea.direction_cos[i, k]
+        along_e += along * sea.direction_sin[i, k]
+        up += decay * wp.sin(argument)
+    return wp.vec3(along_n, along_e, -up)
+
+
+__all__ = [
+    "BAND",
+    "JONSWAP_GAMMA",
+    "PM_PERIOD_FACTOR",
+    "SEA_STATE_HS",
+    "SeaFieldWp",
+    "SeaState",
+    "SeaSurface",
+    "fully_developed_period",
+    "jonswap",
+    "pierson_moskowitz_wind",
+    "sample_sea",
+    "sea_elevation_rate_wp",
+    "sea_elevation_wp",
+    "sea_field_views",
+    "sea_orbital_velocity_wp",
+    "sea_state_height",
+    "spreading_directions",
+]
