@@ -24,7 +24,8 @@ shared machine hits every case alike):
   in the mask (a different one each call), what a rollout's auto-reset runs for the envs that finished
   (the task's draws, the reset checks, the physics' reset launch, the start of the task's episodes);
 - ``env``, ``env lean``, ``env unfused``, ``env lean unfused``: the task env
-  (``make_env(task, airframe, num_envs=N, backend, seed=0, decimation=d, lean=, fused=)``).
+  (``make_env(task, airframe, num_envs=N, backend, seed=0, decimation=d, lean=, fused=)``; unfused: the
+  engine's step, then the task's Warp step as a launch of its own).
 
 Every env (the floor too) is stepped by ``falcon_rl.evaluation.bench.env_stepper``:
 ``step_and_maybe_reset`` with a
