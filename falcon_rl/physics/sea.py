@@ -186,14 +186,14 @@ class SeaSurface:
         """eta (m, up from the mean level) at points ``north``, ``east`` ([N] or [N, P], m) at ``time``
         (s: a scalar, [N], or [N, P] one per point): [N] or [N, P]."""
         eta = (self.amplitude[:, None] * torch.cos(self._argument(north, east, time))).sum(-1)
-        return eta.reshape(torch.as_tensor(north).shape) if torch.as_tensor(north).dim() == 1 else eta
+        return _per_env(eta, north)
 
     def elevation_rate(self, north: torch.Tensor, east: torch.Tensor, time: torch.Tensor | float
                        ) -> torch.Tensor:
         """d(eta)/dt (m/s) at the points and time of :meth:`elevation`, same shape."""
-        rate = (self.amplitude[:, None] * self.frequency[:, None]
-                * torch.sin(self._argument(north, east, time))).sum(-1)
-        return rate.reshape(torch.as_tensor(north).shape) if torch.as_tensor(north).dim() == 1 else rate
+        speed = (self.amplitude * self.frequency)[:, None]
+        rate = (speed * torch.sin(self._argument(north, east, time))).sum(-1)
+        return _per_env(rate, north)
 
     def orbital_velocity(self, north: torch.Tensor, east: torch.Tensor, height: torch.Tensor,
                          time: torch.Tensor | float) -> torch.Tensor:
@@ -201,18 +201,23 @@ class SeaSurface:
         (points [N] -> [N, 3], [N, P] -> [N, P, 3]): each component's a w exp(-k h) (cos along the travel,
         sin up), the water's orbital motion continued into the air above it."""
         argument = self._argument(north, east, time)
-        decay = self.amplitude[:, None] * self.frequency[:, None] * torch.exp(
+        decay = (self.amplitude * self.frequency)[:, None] * torch.exp(
             -self.wavenumber[:, None] * _points(height).clamp_min(0.0)[..., None])
-        along = (decay * torch.cos(argument))
-        up = (decay * torch.sin(argument)).sum(-1)
+        along = decay * torch.cos(argument)
         velocity = torch.stack([(along * self.direction_cos[:, None]).sum(-1),
-                                (along * self.direction_sin[:, None]).sum(-1), -up], dim=-1)
-        return velocity[:, 0] if torch.as_tensor(north).dim() == 1 else velocity
+                                (along * self.direction_sin[:, None]).sum(-1),
+                                -(decay * torch.sin(argument)).sum(-1)], dim=-1)
+        return _per_env(velocity, north)
 
     @property
     def variance(self) -> torch.Tensor:
         """[N] the elevation's variance at a point over a long record: sum a_k^2 / 2 (= m0)."""
         return 0.5 * (self.amplitude**2).sum(-1)
+
+
+def _per_env(values: torch.Tensor, points: torch.Tensor) -> torch.Tensor:
+    """``values`` [N, P, ...] as [N, ...] when the points were one per env ([N]), else as they are."""
+    return values[:, 0] if torch.as_tensor(points).dim() == 1 else values
 
 
 def _points(values: torch.Tensor) -> torch.Tensor:

@@ -258,7 +258,7 @@ class Task(ABC):
         """[N, D] observation (a new tensor, the simulator's dtype) after the rows in ``mask`` [N] bool were
         reset: the Warp step's start kernel, which reads the simulator's buffers, or, for a torch task,
         :meth:`after_reset` then :meth:`observe` of ``state``, the simulator's (built when None)."""
-        stepper = self.fused_stepper()
+        stepper = self.warp_step()
         if stepper is not None:
             return stepper.start(mask).to(self.dtype, copy=True)
         state = self.sim.state if state is None else state
@@ -279,7 +279,7 @@ class Task(ABC):
         scaled and clipped to +-observation_clip, with the current buffers and no side effect: the Warp
         step's observe kernel (the same function as its step's observation), in the simulator's dtype.
         A torch task defines it."""
-        stepper = self.fused_stepper()
+        stepper = self.warp_step()
         if stepper is None or stepper.observe_kernel is None:
             raise NotImplementedError(f"{type(self).__name__} has neither a Warp step with an observe kernel "
                                       f"nor an observe method")
@@ -333,7 +333,7 @@ class Task(ABC):
         sub-steps of ``action`` [N, A] (checked: finite, in [-1, 1]), on the simulator's state: the Warp
         step (buffers the next call overwrites, float32) or, for a torch task, :meth:`torch_step` of
         ``sim.state``."""
-        stepper = self.fused_stepper()
+        stepper = self.warp_step()
         if stepper is not None:
             return stepper(action)
         return self.torch_step(self.sim.state, action)
@@ -364,6 +364,11 @@ class Task(ABC):
         kernel observes a given state (:meth:`observe`). On the warp engine the env runs it inside the
         engine's one-call step (``Engine.fuse``)."""
         return None
+
+    def warp_step(self) -> TaskStep | None:
+        """:meth:`fused_stepper`, read from ``_fused`` once it is bound (a task's ``fused_stepper`` runs
+        its imports and checks on every call: ~2 us, paid here once)."""
+        return self.__dict__.get("_fused") or self.fused_stepper()
 
     @classmethod
     def has_warp_step(cls) -> bool:

@@ -230,12 +230,11 @@ class FusedStep:
     def _kernel_tensors(self) -> tuple[torch.Tensor, ...]:
         """The simulator tensors the kernels read, in float32: the tensors themselves, or, for a float64
         simulator, float32 shadows (made at :meth:`bind`, filled by :meth:`refresh` before each launch)."""
-        shadows = [t if t.dtype == torch.float32 and t.is_contiguous()
-                   else torch.empty(t.shape, device=t.device, dtype=torch.float32)
-                   for t in self._simulator_tensors()]
-        self._shadows = [(source, shadow) for source, shadow in zip(self._simulator_tensors(), shadows,
-                                                                    strict=True) if shadow is not source]
-        return tuple(shadows)
+        sources = self._simulator_tensors()
+        shadows = tuple(t if t.dtype == torch.float32 and t.is_contiguous()
+                        else torch.empty(t.shape, device=t.device, dtype=torch.float32) for t in sources)
+        self._shadows = [(t, shadow) for t, shadow in zip(sources, shadows, strict=True) if shadow is not t]
+        return shadows
 
     def refresh(self) -> None:
         """Copy a float64 simulator's tensors into their float32 shadows (nothing for a float32 one)."""
