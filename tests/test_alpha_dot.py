@@ -151,7 +151,8 @@ def assert_warp_derivative_matches_torch(sim, x: torch.Tensor, command: torch.Te
               inputs=[wp.from_torch(x), wp.from_torch(command, dtype=wp.vec4),
                       wp.from_torch(sim.wind_ned, dtype=wp.vec3),
                       wp.from_torch(sim.gust_velocity_body, dtype=wp.vec3),
-                      wp.from_torch(sim.gust_rate_body, dtype=wp.vec3), bind_warp_params(sim.params),
+                      wp.from_torch(sim.gust_rate_body, dtype=wp.vec3), wp.from_torch(sim.surface),
+                      bind_warp_params(sim.params),
                       wp.from_torch(out)])
     scale = ref.abs().amax(dim=0, keepdim=True).clamp_min(1e-6)
     assert ((out - ref).abs() <= 1e-5 * ref.abs() + 2e-5 * scale).all()

@@ -83,7 +83,7 @@ def test_defaults_are_the_full_model_and_randomisable():
         check_randomizable([row])  # domain randomisation may draw them per episode
     assert ModelSwitches.from_spec(None) == ModelSwitches()
     assert set(ModelSwitches(actuators="ideal", throttle_lag=False, atmosphere="constant", rate_damping=False,
-                             propeller_torque=False).flags().values()) == {1}
+                             propeller_torque=False, surface="sea").flags().values()) == {1}
 
 
 @pytest.mark.parametrize("spec, match", [
@@ -177,7 +177,8 @@ def test_derivative_parity(name, model):
     wp.launch(derivative_kernel, dim=128, inputs=[
         wp.from_torch(x), wp.from_torch(command, dtype=wp.vec4), wp.from_torch(sim.wind_ned, dtype=wp.vec3),
         wp.from_torch(sim.gust_velocity_body, dtype=wp.vec3),
-        wp.from_torch(sim.gust_rate_body, dtype=wp.vec3), bind_warp_params(sim.params), wp.from_torch(out)],
+        wp.from_torch(sim.gust_rate_body, dtype=wp.vec3), wp.from_torch(sim.surface),
+        bind_warp_params(sim.params), wp.from_torch(out)],
         device="cpu")
     scale = ref.abs().amax(dim=0, keepdim=True).clamp_min(1e-6)
     excess = ((out - ref).abs() - 1e-5 * ref.abs() - 1e-5 * scale).max()
@@ -232,7 +233,8 @@ def test_make_env_passes_the_model_through():
     params = env.sim.params
     assert params.ideal_actuators.tolist() == [1, 1] and params.constant_density.tolist() == [1, 1]
     assert params.ideal_throttle.tolist() == [0, 0]
-    assert SWITCH_NAMES == ("actuators", "throttle_lag", "atmosphere", "rate_damping", "propeller_torque")
+    assert SWITCH_NAMES == ("actuators", "throttle_lag", "atmosphere", "rate_damping", "propeller_torque",
+                            "surface")
     assert math.isclose(RHO_SEA_LEVEL, 1.225, rel_tol=1e-3)
 
 

@@ -24,10 +24,10 @@ from falcon_rl.physics.sea import (
     jonswap,
     pierson_moskowitz_wind,
     sample_sea,
+    sea_air_velocity_wp,
     sea_elevation_rate_wp,
     sea_elevation_wp,
     sea_field_views,
-    sea_orbital_velocity_wp,
     sea_state_height,
 )
 
@@ -149,9 +149,9 @@ def test_elevation_rate_and_orbital_flow():
     numeric = (surface.elevation(north, east, t + h) - surface.elevation(north, east, t - h)) / (2 * h)
     torch.testing.assert_close(surface.elevation_rate(north, east, t), numeric, rtol=1e-6, atol=1e-8)
     # at the mean level the vertical flow is the surface's rise (NED: down = -d(eta)/dt), and it decays
-    at_level = surface.orbital_velocity(north, east, torch.zeros(3, dtype=torch.float64), t)
+    at_level = surface.air_velocity(north, east, torch.zeros(3, dtype=torch.float64), t)
     torch.testing.assert_close(-at_level[:, 2], surface.elevation_rate(north, east, t))
-    far = surface.orbital_velocity(north, east, torch.full((3,), 200.0, dtype=torch.float64), t)
+    far = surface.air_velocity(north, east, torch.full((3,), 200.0, dtype=torch.float64), t)
     assert far.abs().max() < 1e-3 * at_level.abs().max()
 
 
@@ -174,7 +174,7 @@ def evaluate_sea(sea: SeaFieldWp, points: wp.array(dtype=wp.vec4), out: wp.array
     p = points[i]
     out[i, 0] = sea_elevation_wp(sea, i, p[0], p[1], p[3])
     out[i, 1] = sea_elevation_rate_wp(sea, i, p[0], p[1], p[3])
-    flow = sea_orbital_velocity_wp(sea, i, p[0], p[1], p[2], p[3])
+    flow = sea_air_velocity_wp(sea, i, p[0], p[1], p[2], p[3])
     out[i, 2] = flow[0]
     out[i, 3] = flow[1]
     out[i, 4] = flow[2]
@@ -191,7 +191,7 @@ def test_the_warp_twins_evaluate_the_same_field():
     north, east, height, time = points.unbind(-1)
     expected = torch.cat([surface.elevation(north, east, time)[:, None],
                           surface.elevation_rate(north, east, time)[:, None],
-                          surface.orbital_velocity(north, east, height, time)], -1)
+                          surface.air_velocity(north, east, height, time)], -1)
     torch.testing.assert_close(out, expected, rtol=1e-4, atol=2e-4)
     assert expected[:, 0].abs().max() > 0.5  # a real sea state 4 field, not zeros
     with pytest.raises(ValueError, match="contiguous float32"):

@@ -251,6 +251,7 @@ def test_warp_derivative_matches_torch(ge):
             wp.from_torch(sim.wind_ned, dtype=wp.vec3),
             wp.from_torch(sim.gust_velocity_body, dtype=wp.vec3),
             wp.from_torch(sim.gust_rate_body, dtype=wp.vec3),
+            wp.from_torch(sim.surface),
             bind_warp_params(sim.params),
             wp.from_torch(out),
         ],

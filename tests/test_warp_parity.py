@@ -303,6 +303,7 @@ def test_full_derivative(name, ge):
                                    wp.from_torch(sim.wind_ned, dtype=wp.vec3),
                                    wp.from_torch(sim.gust_velocity_body, dtype=wp.vec3),
                                    wp.from_torch(sim.gust_rate_body, dtype=wp.vec3),
+                                   wp.from_torch(sim.surface),
                                    bind_warp_params(sim.params), wp.from_torch(out)])
     _close("derivative", out, ref)
 

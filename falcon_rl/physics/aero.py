@@ -17,7 +17,9 @@ Mach, airspeed, h/b and throttle, each times a monomial multiplier. A monomial a
 so the same kernel runs every airframe.
 
 Ground effect (see ``ground_effect.py``) scales C_L and the induced drag (Phillips-Hunsaker, modes
-"induced" and "paper"), or, in mode "tables", the tables read the true h/b (JSBSim's kCLge/kCDge
+"induced" and "paper"; over a sea at the wing's mean clearance, with the rolling and yawing moments of the
+surface's span asymmetry, ``surface.py``), or, in mode "tables", the tables read the true h/b (JSBSim's
+kCLge/kCDge
 come across as table data); in every other mode the tables see h/b = H_OVER_B_FREE_AIR. The model switch
 ``no_rate_damping`` (``switches.ModelSwitches(rate_damping=False)``) sets rate_hat = 0 per env, so the
 rate derivatives contribute nothing (nor do the alpha-dot terms).
@@ -39,7 +41,7 @@ from ._warp import vector_type, warp_func, warp_struct, wp
 from .aero_monomials import aero_coefficients_oge, aero_coefficients_oge_wp
 from .atmosphere import RHO_SEA_LEVEL
 from .constants import GAMMA, R_AIR, T0
-from .ground_effect import GE_INDUCED, GE_PAPER, GE_TABLES, influence_ratios, phillips_hunsaker_wp
+from .ground_effect import GE_INDUCED, GE_PAPER, GE_TABLES, ground_effect_factors_wp, influence_ratios
 from .interpolated_terms import (
     AIRSPEED,
     ALPHA,
@@ -111,14 +113,22 @@ def tables_h_over_b(h_over_b: torch.Tensor, p: ModelParams) -> torch.Tensor:
     return torch.where(p.ground_effect_mode == GE_TABLES, h_over_b, free_air)
 
 
-def apply_ground_effect(coeffs: torch.Tensor, h_over_b: torch.Tensor, p: ModelParams
+def apply_ground_effect(coeffs: torch.Tensor, h_over_b: torch.Tensor, p: ModelParams,
+                        asymmetry: torch.Tensor | None = None
                         ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
-    """Scale C_L and C_D for ground effect per env mode.
+    """Scale C_L and C_D for ground effect per env mode; over a surface whose span asymmetry is
+    ``asymmetry`` [N] (``surface.py``: A = sum_s w_s (y_s / b)(eta_s / b)), add the rolling and yawing
+    moments of the station factors' first-order variation, dC_l = C_L,inf (d kappa_L / dx) A and
+    dC_n = -(C_Di / kappa_D)(d kappa_D / dx) A (modes "induced" and "paper").
 
     Returns (coefficients [N, 6], induced C_D [N], kappa_L [N], kappa_D [N]).
     """
     cl_inf, cd_inf = coeffs[:, 0], coeffs[:, 1]
-    kappa_l, kappa_d = influence_ratios(h_over_b, p.wing_constants, cl_inf)
+    slope_l = slope_d = None
+    if asymmetry is None:
+        kappa_l, kappa_d = influence_ratios(h_over_b, p.wing_constants, cl_inf)
+    else:
+        kappa_l, kappa_d, slope_l, slope_d = influence_ratios(h_over_b, p.wing_constants, cl_inf, slopes=True)
     mode = p.ground_effect_mode
     active = (mode == GE_INDUCED) | (mode == GE_PAPER)
     kappa_l = torch.where(active, kappa_l, torch.ones_like(kappa_l))
@@ -132,14 +142,19 @@ def apply_ground_effect(coeffs: torch.Tensor, h_over_b: torch.Tensor, p: ModelPa
     cd = torch.where(mode == GE_INDUCED, cd_induced_form,
                      torch.where(mode == GE_PAPER, cd_paper_form, cd_inf))
     cdi_out = torch.where(mode == GE_INDUCED, cdi, cdi_inf * kappa_d * kappa_l**2)
-    out = torch.cat([cl.unsqueeze(-1), cd.unsqueeze(-1), coeffs[:, 2:]], dim=-1)
+    rest = coeffs[:, 2:]
+    if slope_l is not None and slope_d is not None and asymmetry is not None:
+        roll = torch.where(active, cl_inf * slope_l * asymmetry, 0.0)
+        yaw = torch.where(active, -induced_factor * cl**2 * slope_d * asymmetry, 0.0)
+        rest = torch.stack([rest[:, 0], rest[:, 1] + roll, rest[:, 2], rest[:, 3] + yaw], dim=-1)
+    out = torch.cat([cl.unsqueeze(-1), cd.unsqueeze(-1), rest], dim=-1)
     return out, cdi_out, kappa_l, kappa_d
 
 
 def aero_forces(
     airspeed: torch.Tensor, alpha: torch.Tensor, beta: torch.Tensor, omega_air: torch.Tensor,
     surfaces: torch.Tensor, density: torch.Tensor, h_over_b: torch.Tensor, p: ModelParams,
-    throttle: torch.Tensor | None = None,
+    throttle: torch.Tensor | None = None, asymmetry: torch.Tensor | None = None,
 ) -> AeroOutput:
     """Body-axis aero force and moment about the CG (the force acting at ``p.aero_reference``).
 
@@ -147,8 +162,10 @@ def aero_forces(
         airspeed, alpha, beta: [N] air-relative speed (m/s) and angles (rad).
         omega_air: [N, 3] body rates relative to the air mass (rad/s).
         surfaces: [N, 3] deflections (rad). density: [N] kg/m^3.
-        h_over_b: [N] height of the wing quarter chord over span.
+        h_over_b: [N] height of the wing quarter chord (above the mean surface under it) over span.
         throttle: [N] first motor's throttle state in [0, 1] (table terms may read it), None for 0.
+        asymmetry: [N] the surface's span asymmetry A under the wing (``surface.py``), None over the
+            flat ground.
     """
     v = airspeed.clamp_min(MIN_AIRSPEED)
     half_over_v = 0.5 / v
@@ -167,7 +184,7 @@ def aero_forces(
             per_alpha_dot = per_unit[:, :6].masked_fill((p.no_rate_damping != 0).unsqueeze(-1), 0.0)
         else:
             coeffs = coeffs + table_outputs(x, p)[:, :6]
-    coeffs, cdi, kappa_l, kappa_d = apply_ground_effect(coeffs, h_over_b, p)
+    coeffs, cdi, kappa_l, kappa_d = apply_ground_effect(coeffs, h_over_b, p, asymmetry)
     qs = 0.5 * density * airspeed**2 * p.wing_area
     force, moment = coefficient_loads(coeffs, alpha, qs, lengths, p)
     out = AeroOutput(force, moment, coeffs, cdi, kappa_l, kappa_d)
@@ -230,15 +247,16 @@ def table_variables_wp(alpha: float, beta: float, surfaces: wp.vec3, rates_hat: 
 def aero_forces_wp(airspeed: float, alpha: float, beta: float, omega_air: wp.vec3, surfaces: wp.vec3,
                    density: float, h_over_b: float, p: WarpParams, i: int) -> AeroResultWp:
     """Body-axis aero force and moment of env ``i`` at zero throttle (twin of :func:`aero_forces`)."""
-    return aero_forces_throttle_wp(airspeed, alpha, beta, omega_air, surfaces, density, h_over_b, 0.0, p, i)
+    return aero_forces_throttle_wp(airspeed, alpha, beta, omega_air, surfaces, density, h_over_b, 0.0, 0.0, p,
+                                   i)
 
 
 @warp_func
 def aero_forces_throttle_wp(airspeed: float, alpha: float, beta: float, omega_air: wp.vec3, surfaces: wp.vec3,
-                            density: float, h_over_b: float, throttle: float, p: WarpParams, i: int
-                            ) -> AeroResultWp:
-    """Body-axis aero force and moment of env ``i``, ``throttle`` the first motor's (twin of
-    :func:`aero_forces`)."""
+                            density: float, h_over_b: float, asymmetry: float, throttle: float, p: WarpParams,
+                            i: int) -> AeroResultWp:
+    """Body-axis aero force and moment of env ``i`` over a surface of span ``asymmetry`` (0 over the
+    ground), ``throttle`` the first motor's (twin of :func:`aero_forces`)."""
     span = p.span[i]
     chord = p.chord[i]
     half_over_v = 0.5 / wp.max(airspeed, MIN_AIRSPEED)
@@ -268,12 +286,19 @@ def aero_forces_throttle_wp(airspeed: float, alpha: float, beta: float, omega_ai
     cd_inf = c[1]
     kappa_l = float(1.0)  # noqa: UP018 (a mutable Warp local)
     kappa_d = float(1.0)  # noqa: UP018 (a mutable Warp local)
+    slope_l = float(0.0)  # noqa: UP018 (a mutable Warp local)
+    slope_d = float(0.0)  # noqa: UP018 (a mutable Warp local)
     if mode == GE_INDUCED or mode == GE_PAPER:  # noqa: SIM109 (Warp has no tuple membership)
-        kappas = phillips_hunsaker_wp(h_over_b, p.wing_constants[i], cl_inf)
+        kappas = ground_effect_factors_wp(h_over_b, p.wing_constants[i], cl_inf)
         kappa_l = kappas[0]
         kappa_d = kappas[1]
+        slope_l = kappas[2]
+        slope_d = kappas[3]
     induced_factor = 1.0 / (wp.pi * p.oswald[i] * p.aspect_ratio[i])
     cl = kappa_l * cl_inf
+    if asymmetry != 0.0:
+        c[3] = c[3] + cl_inf * slope_l * asymmetry
+        c[5] = c[5] - induced_factor * cl * cl * slope_d * asymmetry
     cdi_inf = induced_factor * cl_inf * cl_inf
     cdi = kappa_d * induced_factor * cl * cl
     cd = cd_inf

@@ -26,6 +26,17 @@ and the diagnostics that the plots show (what the model computed, not a re-deriv
     ge_h_over_b [N]         wing quarter-chord height over span, the ground-effect argument
     ge_lift_factor [N]      Phillips-Hunsaker lift influence ratio (-> 1 far from the ground; 1 when off)
     ge_drag_factor [N]      Phillips-Hunsaker induced-drag influence ratio (likewise)
+
+and the surface under the aircraft (``surface.py``; over the flat ground: elevation 0, the heights):
+
+    surface_elevation [N]     m, the surface's elevation under the CG (the sea's eta; 0 over the ground)
+    surface_clearance [N]     m, CG height above the surface under it (what a radar altimeter reads)
+    lowest_tip_clearance [N]  m, the lower wing tip's height above the surface under it
+    over_water [N]            1 over the env's sea, 0 over the ground
+    wave_velocity_ned [N, 3]  m/s, the air's flow over the waves at the wing, added to the wind
+
+``split_derived`` adds the contacts: ``ground_contact`` (the CG or a wing tip at or below the ground)
+and ``water_contact`` (the same against the water under them).
 """
 
 from __future__ import annotations
@@ -45,7 +56,8 @@ DERIVED_FIELDS: tuple[tuple[str, int], ...] = (
     ("surface_position", 3), ("thrust", 1), ("aero_coefficients", 6), ("lowest_tip_height", 1),
     ("velocity_ned", 3), ("euler", 3),
     ("aero_force_body", 3), ("aero_moment_body", 3), ("motor_thrust", MAX_MOTORS), ("ge_h_over_b", 1),
-    ("ge_lift_factor", 1), ("ge_drag_factor", 1),
+    ("ge_lift_factor", 1), ("ge_drag_factor", 1), ("surface_elevation", 1), ("surface_clearance", 1),
+    ("lowest_tip_clearance", 1), ("over_water", 1), ("wave_velocity_ned", 3),
 )
 #: First column of each derived field.
 DERIVED_OFFSET: dict[str, int] = dict(zip(
@@ -56,9 +68,10 @@ DERIVED_WIDTH: int = sum(width for _, width in DERIVED_FIELDS)
 _WIDTHS: list[int] = [width for _, width in DERIVED_FIELDS]
 
 
-def ground_contact(height: torch.Tensor, lowest_tip_height: torch.Tensor) -> torch.Tensor:
-    """[N] bool: the CG or the lower wing tip is at or below the ground (the one definition)."""
-    return (height <= 0.0) | (lowest_tip_height <= 0.0)
+def surface_contact(clearance: torch.Tensor, lowest_tip_clearance: torch.Tensor) -> torch.Tensor:
+    """[N] bool: the CG or the lower wing tip is at or below the surface under it (the one definition;
+    over the flat ground the clearances are the heights)."""
+    return (clearance <= 0.0) | (lowest_tip_clearance <= 0.0)
 
 
 def pack_derived(fields: dict[str, torch.Tensor]) -> torch.Tensor:
@@ -74,7 +87,8 @@ def pack_derived(fields: dict[str, torch.Tensor]) -> torch.Tensor:
 
 
 def split_derived(derived: torch.Tensor, copy: bool = True) -> dict[str, torch.Tensor]:
-    """Named fields ([N] for width 1) of a [N, DERIVED_WIDTH] tensor, plus ``ground_contact`` [N] bool:
+    """Named fields ([N] for width 1) of a [N, DERIVED_WIDTH] tensor, plus ``ground_contact`` and
+    ``water_contact`` [N] bool:
     fresh tensors, or views of ``derived`` with ``copy=False`` (for a tensor the caller owns)."""
     if derived.shape[-1] != DERIVED_WIDTH:
         raise ValueError(f"derived tensor has {derived.shape[-1]} columns, expected {DERIVED_WIDTH}")
@@ -83,5 +97,8 @@ def split_derived(derived: torch.Tensor, copy: bool = True) -> dict[str, torch.T
     for (name, width), column in zip(DERIVED_FIELDS, derived.split(_WIDTHS, dim=-1), strict=True):
         column = column.squeeze(-1) if width == 1 else column
         out[name] = column.clone() if copy else column
-    out["ground_contact"] = ground_contact(out["height"], out["lowest_tip_height"])
+    contact = surface_contact(out["surface_clearance"], out["lowest_tip_clearance"])
+    water = out["over_water"] != 0
+    out["ground_contact"] = contact & ~water
+    out["water_contact"] = contact & water
     return out

@@ -5,8 +5,11 @@
     v_dot  = (F_aero + F_prop) / m + R(q)^T g - omega x v
     w_dot  = J^-1 (M_aero + M_prop - omega x J omega)
 
-The aero model sees the air-relative velocity V_a = v - R^T w_ned - w_gust and the rates
-omega - omega_gust, so wind and turbulence act on alpha, beta and dynamic pressure. An airframe with
+The aero model sees the air-relative velocity V_a = v - R^T (w_ned + w_waves) - w_gust and the rates
+omega - omega_gust, so wind, the air's flow over the waves and turbulence act on alpha, beta and dynamic
+pressure. Over a sea (``surface.py``) the ground-effect argument is the wing's clearance above the mean
+surface under it, h/b = (h_wing - eta_bar) / b, and the surface's span asymmetry A adds the rolling and
+yawing moments of ``aero.apply_ground_effect``. An airframe with
 alpha-dot table terms has them solved from v_dot in closed form (``alpha_dot.py``) inside
 :func:`evaluate`, so F_aero already holds them.
 
@@ -45,6 +48,14 @@ from .rotations import (
     rotation_matrix_wp,
 )
 from .state import ANGULAR_RATE_START, QUATERNION_START, SURFACE_POSITION_START, VELOCITY_START, StateVec
+from .surface import (
+    ELEVATION,
+    WAVE_VELOCITY,
+    SurfaceVec,
+    flat_clearances,
+    held_surface,
+    held_surface_wp,
+)
 
 
 @dataclass
@@ -54,6 +65,8 @@ class AirInputs:
     wind_ned: torch.Tensor | None = None  # [N, 3] m/s, steady wind in NED
     gust_velocity_body: torch.Tensor | None = None  # [N, 3] m/s
     gust_rate_body: torch.Tensor | None = None  # [N, 3] rad/s
+    #: [N, SURFACE_WIDTH] the surface samples held over the step (``surface.py``; None: the flat ground)
+    surface: torch.Tensor | None = None
 
 
 @dataclass
@@ -75,6 +88,7 @@ class Evaluation:
     density: torch.Tensor  # [N]
     height: torch.Tensor  # [N] CG height above ground
     wing_height: torch.Tensor  # [N] height of the wing quarter chord
+    wing_clearance: torch.Tensor  # [N] its height above the mean surface under the wing (eta_bar)
     rotation: torch.Tensor  # [N, 3, 3] body -> NED
     surfaces: torch.Tensor  # [N, 3] clamped deflections, rad
 
@@ -97,9 +111,15 @@ def evaluate(x: torch.Tensor, p: ModelParams, air: AirInputs | None = None) -> E
     rot = rotation_matrix(q)
     v_air = vel
     omega_air = omega
+    surface_height, asymmetry = None, None
     if air is not None:
-        if air.wind_ned is not None:
-            v_air = v_air - (rot * air.wind_ned.unsqueeze(-1)).sum(dim=-2)  # R^T w
+        wind = air.wind_ned
+        if air.surface is not None:
+            surface_height, asymmetry = held_surface(x, air.surface)
+            waves = air.surface[:, WAVE_VELOCITY:WAVE_VELOCITY + 3]
+            wind = waves if wind is None else wind + waves
+        if wind is not None:
+            v_air = v_air - (rot * wind.unsqueeze(-1)).sum(dim=-2)  # R^T w
         if air.gust_velocity_body is not None:
             v_air = v_air - air.gust_velocity_body
         if air.gust_rate_body is not None:
@@ -111,8 +131,9 @@ def evaluate(x: torch.Tensor, p: ModelParams, air: AirInputs | None = None) -> E
     surfaces = torch.minimum(torch.maximum(x[:, S.SURFACE_POSITION], p.surface_min), p.surface_max)
     throttle = x[:, S.THROTTLE_START:]
     first_throttle = throttle[:, 0] if throttle.shape[1] else torch.zeros_like(height)
+    clearance = wing_height if surface_height is None else wing_height - surface_height
     aero = aero_forces(airspeed, alpha, beta, omega_air, surfaces, density,
-                       wing_height / p.span, p, first_throttle)
+                       clearance / p.span, p, first_throttle, asymmetry)
     f_prop, m_prop, thrust = propulsion_forces(v_air, throttle, density, p, omega)
     if aero.alpha_dot_force is not None:
         steady = translational_acceleration(aero.force_body + f_prop, rot, omega, vel, p)
@@ -134,6 +155,7 @@ def evaluate(x: torch.Tensor, p: ModelParams, air: AirInputs | None = None) -> E
         density=density,
         height=height,
         wing_height=wing_height,
+        wing_clearance=clearance,
         rotation=rot,
         surfaces=surfaces,
     )
@@ -194,16 +216,23 @@ def derived_columns(x: torch.Tensor, p: ModelParams, air: AirInputs | None = Non
     """[N, DERIVED_WIDTH] derived state of x [N, S] in the columns of ``derived.DERIVED_FIELDS``
     (the torch twin of ``warp_kernels.evaluate_kernel``)."""
     ev = evaluate(x, p, air)
+    tip = lowest_tip_height(ev, p)
+    sample = None if air is None else air.surface
+    clearance, tip_clearance, over_water = flat_clearances(ev.height, tip, sample)
+    elevation = torch.zeros_like(ev.height) if sample is None else sample[:, ELEVATION]
+    waves = (torch.zeros_like(x[:, S.VELOCITY]) if sample is None
+             else sample[:, WAVE_VELOCITY:WAVE_VELOCITY + 3])
     return pack_derived({
         "airspeed": ev.airspeed, "alpha": ev.alpha, "beta": ev.beta, "height": ev.height,
         "wing_height": ev.wing_height, "surface_position": ev.surfaces, "thrust": ev.thrust.sum(-1),
-        "aero_coefficients": ev.coefficients, "lowest_tip_height": lowest_tip_height(ev, p),
+        "aero_coefficients": ev.coefficients, "lowest_tip_height": tip,
         "velocity_ned": (ev.rotation * x[:, S.VELOCITY].unsqueeze(1)).sum(dim=-1),
         "euler": quaternion_to_euler(x[:, S.QUATERNION]),
         "aero_force_body": ev.aero_force_body, "aero_moment_body": ev.aero_moment_body,
         "motor_thrust": torch.nn.functional.pad(ev.thrust, (0, MAX_MOTORS - ev.thrust.shape[-1])),
-        "ge_h_over_b": ev.wing_height / p.span, "ge_lift_factor": ev.kappa_lift,
-        "ge_drag_factor": ev.kappa_drag,
+        "ge_h_over_b": ev.wing_clearance / p.span, "ge_lift_factor": ev.kappa_lift,
+        "ge_drag_factor": ev.kappa_drag, "surface_elevation": elevation, "surface_clearance": clearance,
+        "lowest_tip_clearance": tip_clearance, "over_water": over_water, "wave_velocity_ned": waves,
     })
 
 
@@ -242,6 +271,7 @@ class EvaluationWp:
     beta: float
     height: float
     wing_height: float
+    wing_clearance: float
     surfaces: wp.vec3
     force_body: wp.vec3
     moment_body: wp.vec3
@@ -258,12 +288,18 @@ class EvaluationWp:
 
 @warp_func
 def evaluate_wp(x: StateVec, wind_ned: wp.vec3, gust_velocity_body: wp.vec3, gust_rate_body: wp.vec3,
-                p: WarpParams, i: int) -> EvaluationWp:
-    """Forces, moments and air data of env ``i`` at state ``x`` (twin of :func:`evaluate`)."""
+                surface: SurfaceVec, p: WarpParams, i: int) -> EvaluationWp:
+    """Forces, moments and air data of env ``i`` at state ``x`` over its held ``surface`` sample (read
+    when ``p.sea_surface[i]`` is set) (twin of :func:`evaluate`)."""
     q = wp.vec4(x[QUATERNION_START], x[QUATERNION_START + 1], x[QUATERNION_START + 2],
                 x[QUATERNION_START + 3])
     rot = rotation_matrix_wp(q)
-    v_air = state_vec3(x, VELOCITY_START) - wp.transpose(rot) * wind_ned - gust_velocity_body
+    wind = wind_ned
+    held = wp.vec2(0.0, 0.0)
+    if p.sea_surface[i] != 0:
+        held = held_surface_wp(x, surface)
+        wind = wind + wp.vec3(surface[WAVE_VELOCITY], surface[WAVE_VELOCITY + 1], surface[WAVE_VELOCITY + 2])
+    v_air = state_vec3(x, VELOCITY_START) - wp.transpose(rot) * wind - gust_velocity_body
     omega_air = state_vec3(x, ANGULAR_RATE_START) - gust_rate_body
     air = air_data_wp(v_air)
     height = -x[S.DOWN_INDEX]
@@ -274,8 +310,9 @@ def evaluate_wp(x: StateVec, wind_ned: wp.vec3, gust_velocity_body: wp.vec3, gus
     surfaces = wp.vec3(wp.min(wp.max(x[SURFACE_POSITION_START], lo[0]), hi[0]),
                        wp.min(wp.max(x[SURFACE_POSITION_START + 1], lo[1]), hi[1]),
                        wp.min(wp.max(x[SURFACE_POSITION_START + 2], lo[2]), hi[2]))
+    clearance = wing_height - held[0]
     aero = aero_forces_throttle_wp(air[0], air[1], air[2], omega_air, surfaces, density,
-                                   wing_height / p.span[i], x[S.THROTTLE_START], p, i)
+                                   clearance / p.span[i], held[1], x[S.THROTTLE_START], p, i)
     prop = propulsion_forces_wp(v_air, x, density, p, i)
     if p.num_alpha_dot_terms > 0:
         omega = state_vec3(x, ANGULAR_RATE_START)
@@ -290,6 +327,7 @@ def evaluate_wp(x: StateVec, wind_ned: wp.vec3, gust_velocity_body: wp.vec3, gus
     ev.beta = air[2]
     ev.height = height
     ev.wing_height = wing_height
+    ev.wing_clearance = clearance
     ev.surfaces = surfaces
     ev.force_body = aero.force_body + prop.force_body
     ev.moment_body = aero.moment_body + prop.moment_body
@@ -306,9 +344,9 @@ def evaluate_wp(x: StateVec, wind_ned: wp.vec3, gust_velocity_body: wp.vec3, gus
 
 @warp_func
 def derivative_wp(x: StateVec, command: wp.vec4, wind_ned: wp.vec3, gust_velocity_body: wp.vec3,
-                  gust_rate_body: wp.vec3, p: WarpParams, i: int) -> StateVec:
+                  gust_rate_body: wp.vec3, surface: SurfaceVec, p: WarpParams, i: int) -> StateVec:
     """State derivative of env ``i`` (twin of :func:`derivative`; padded throttle slots stay 0)."""
-    ev = evaluate_wp(x, wind_ned, gust_velocity_body, gust_rate_body, p, i)
+    ev = evaluate_wp(x, wind_ned, gust_velocity_body, gust_rate_body, surface, p, i)
     rot = ev.rotation
     q = wp.vec4(x[QUATERNION_START], x[QUATERNION_START + 1], x[QUATERNION_START + 2],
                 x[QUATERNION_START + 3])

@@ -22,6 +22,11 @@ Buffers (allocated by :class:`Engine`, updated in place, never replaced):
     gust_velocity_body  [N, 3]  m/s, Dryden gusts acting over the current step
     gust_rate_body      [N, 3]  rad/s
     crashed             [N]     bool, envs stopped at the ground since their reset (``stop_at_ground``)
+    surface             [N, W]  the surface under each aircraft at the current state (``surface.py``,
+                                columns ``SURFACE_FIELDS``): a sea env's sample, zeros over the ground
+    sea                 the envs' wave fields (``sea.SeaSurface``, [N, K] each), or None until a sea
+                        is drawn (:meth:`Engine.draw_sea`); envs over the sea are those whose
+                        ``params.sea_surface`` is 1 (a calm sea where none was drawn)
     params              ModelParams, per-env tensors [N, ...] (domain randomisation writes them)
     turbulence          the Dryden filter state, or None when turbulence is off
     generator           this engine's torch generator (noise of the torch Dryden filters), a
@@ -51,7 +56,9 @@ import torch
 from ..airframe import Airframe
 from .dynamics import AirInputs, hold_command, project
 from .params import ModelParams
+from .sea import SeaState, SeaSurface, sample_sea
 from .state import ANGULAR_RATE, DOWN_INDEX, NUM_CONTROLS, VELOCITY, StateLayout
+from .surface import CLEARANCE, ELEVATION, OVER_WATER, SURFACE_WIDTH, sample_surface, state_rotation
 from .wind import Turbulence, TurbulenceConfig
 
 
@@ -111,6 +118,8 @@ class EngineSetup:
     #: Backend-specific options (e.g. ``compile`` for torch, ``cpu_threads`` for warp); an engine
     #: raises on any name outside its ``OPTIONS``.
     options: Mapping[str, Any] = field(default_factory=dict)
+    #: Airy components of each env's wave field (``sea.sample_sea``), when a sea is drawn.
+    sea_components: int = 64
 
 
 class Engine(ABC):
@@ -148,6 +157,8 @@ class Engine(ABC):
         self.gust_velocity_body = torch.zeros(n, 3, **kw)
         self.gust_rate_body = torch.zeros(n, 3, **kw)
         self.crashed = torch.zeros(n, dtype=torch.bool, device=setup.device)
+        self.surface = torch.zeros(n, SURFACE_WIDTH, **kw)
+        self.sea: SeaSurface | None = None
         #: [N, S] the state before a step that applies the crash state (allocated on first use).
         self._before: torch.Tensor | None = None
         seed = fresh_seed() if setup.seed is None else int(setup.seed)
@@ -158,8 +169,57 @@ class Engine(ABC):
 
     @property
     def air(self) -> AirInputs:
-        """The air-mass motion the dynamics sees (views of the wind and gust buffers)."""
-        return AirInputs(self.wind_ned, self.gust_velocity_body, self.gust_rate_body)
+        """The air-mass motion the dynamics sees (views of the wind and gust buffers) and, once a sea is
+        drawn, the surface under each aircraft (``surface``)."""
+        return AirInputs(self.wind_ned, self.gust_velocity_body, self.gust_rate_body,
+                         None if self.sea is None else self.surface)
+
+    # ------------------------------------------------------------------ the sea
+    def draw_sea(self, sea: SeaState, generator: torch.Generator, mask: torch.Tensor | None = None) -> None:
+        """Draw a wave field of ``sea`` (``sea.sample_sea``, :attr:`EngineSetup.sea_components` components,
+        from ``generator``: the same draws whatever the mask) into the rows of ``mask`` [N] bool (all when
+        None) and sample their surface; the other rows keep theirs. The rows' ``sea_surface`` switch is
+        the caller's (``Simulator.set_sea``)."""
+        drawn = sample_sea(sea, self.num_envs, generator, self.setup.sea_components, self.setup.device,
+                           self.setup.dtype)
+        field = self.ensure_sea()
+        for name, tensor in vars(drawn).items():
+            target = getattr(field, name)
+            if mask is None:
+                target.copy_(tensor)
+            else:
+                target.copy_(torch.where(mask[:, None], tensor, target))
+        self.sample_surface(mask)
+
+    def ensure_sea(self) -> SeaSurface:
+        """The envs' wave fields, allocated calm (zero amplitudes) on first use; the tensors stay in place."""
+        if self.sea is None:
+            shape = (self.num_envs, self.setup.sea_components)
+            kw = {"device": self.setup.device, "dtype": self.setup.dtype}
+            self.sea = SeaSurface(*(torch.zeros(shape, **kw) for _ in range(6)))
+            self.sea.direction_cos.fill_(1.0)
+            self.sea.wavenumber.fill_(1.0)
+        return self.sea
+
+    def sample_surface(self, mask: torch.Tensor | None = None) -> None:
+        """Sample the surface under the rows of ``mask`` (all when None) at the current state and clock into
+        :attr:`surface` (torch): a sea env's sample, zeros for an env over the ground. Nothing without a
+        sea drawn and no env over the sea."""
+        flags = self.params.sea_surface != 0
+        if self.sea is None:
+            if not bool(flags.any()):
+                return
+            self.ensure_sea()
+        assert self.sea is not None
+        x = self.x
+        sample = sample_surface(x, state_rotation(x), self.params.span, self.params.wing_quarter_chord,
+                                self.sea,
+                                self.time)
+        sample = sample.masked_fill(~flags[:, None], 0.0)
+        if mask is None:
+            self.surface.copy_(sample)
+        else:
+            self.surface.copy_(torch.where(mask[:, None], sample, self.surface))
 
     # ------------------------------------------------------------------ the contract
     def step(self, command: torch.Tensor, substeps: int = 1, stop_at_ground: bool = False) -> None:
@@ -187,14 +247,25 @@ class Engine(ABC):
 
     def stop_crashed(self, before: torch.Tensor) -> None:
         """The crash state in torch, after the sub-steps: envs already ``crashed`` get ``before`` [N, S]
-        (the state before the step) back; envs whose CG went below the ground stop on it and are
-        flagged. No host sync, no [N, S] allocation (``before`` is overwritten)."""
+        (the state before the step) back; envs whose CG went below the ground (over the sea: the water
+        under it) stop on it and are flagged. No host sync, no [N, S] allocation over the ground
+        (``before`` is overwritten)."""
         x = self.x
         below = x[:, DOWN_INDEX] > 0.0
+        surface_down = None
+        if self.sea is not None:
+            water = self.surface[:, OVER_WATER] != 0
+            below = torch.where(water, self.surface[:, CLEARANCE] < 0.0, below)
+            surface_down = torch.where(water, -self.surface[:, ELEVATION], 0.0)
         x.copy_(torch.where(self.crashed[:, None], before, x, out=before))
-        x[:, DOWN_INDEX].masked_fill_(below, 0.0)
+        if surface_down is None:
+            x[:, DOWN_INDEX].masked_fill_(below, 0.0)
+        else:
+            x[:, DOWN_INDEX].copy_(torch.where(below, surface_down, x[:, DOWN_INDEX]))
         x[:, VELOCITY.start:ANGULAR_RATE.stop].masked_fill_(below[:, None], 0.0)
         self.crashed |= below
+        if self.sea is not None:
+            self.sample_surface()
 
     def reset(self, initial_x: torch.Tensor, initial_command: torch.Tensor,
               mask: torch.Tensor | None = None) -> None:
@@ -216,6 +287,7 @@ class Engine(ABC):
             self.crashed.masked_fill_(mask, False)
         if self.turbulence is not None:
             self.turbulence.reset(mask)
+        self.sample_surface(mask)
         self.after_reset()
 
     def start(self, initial_x: torch.Tensor, initial_command: torch.Tensor,

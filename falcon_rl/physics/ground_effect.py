@@ -68,20 +68,38 @@ def wing_constants(aspect_ratio: torch.Tensor, taper_ratio: torch.Tensor) -> tor
 
 
 def influence_ratios(h_over_b: torch.Tensor, constants: torch.Tensor,
-                     lift_coefficient: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+                     lift_coefficient: torch.Tensor | None = None, slopes: bool = False
+                     ) -> tuple[torch.Tensor, ...]:
     """(kappa_L, kappa_D) at h_over_b [...] for a wing given by its ``constants`` [..., 5]
-    (:func:`wing_constants`); ``lift_coefficient`` [...] turns on the high-lift corrections."""
+    (:func:`wing_constants`); ``lift_coefficient`` [...] turns on the high-lift corrections. With
+    ``slopes`` also (d kappa_L / dx, d kappa_D / dx) at x = h/b (0 where x is clamped), from the same
+    powers and exponentials: with P_a = x^a,
+
+        d kappa_D0/dx = delta_D 4.74 (0.814 P_0.814 / x) E_1 - x E_2 (2 - 3.88 0.758 P_0.758)
+        d kappa_L0/dx = (kappa_L0 - 1) (0.787 - 9.14 0.327 P_0.327) / x
+        d beta_D/dx = -1.51 (beta_D - 1) / x,   d beta_L/dx = -1.12 (beta_L - 1) / x
+    """
     x = torch.clamp(h_over_b, min=H_OVER_B_MIN)
     delta_d, delta_l, ar_0882, ar_119, ar_318 = constants.unbind(-1)
-    kappa_d = 1.0 - delta_d * torch.exp(-4.74 * x**0.814) - x**2 * torch.exp(-3.88 * x**0.758)
-    kappa_l = 1.0 + delta_l * 288.0 * x**0.787 * torch.exp(-9.14 * x**0.327) / ar_0882
+    p1, p2, p4 = x**0.814, x**0.758, x**0.327
+    e1, e2 = torch.exp(-4.74 * p1), torch.exp(-3.88 * p2)
+    kappa_d = 1.0 - delta_d * e1 - x**2 * e2
+    bump = delta_l * 288.0 * x**0.787 * torch.exp(-9.14 * p4) / ar_0882
+    kappa_l = 1.0 + bump
+    slope_d = delta_d * 4.74 * 0.814 * p1 / x * e1 - x * e2 * (2.0 - 3.88 * 0.758 * p2)
+    slope_l = bump * (0.787 - 9.14 * 0.327 * p4) / x
     if lift_coefficient is not None:
         cl = torch.abs(lift_coefficient)
         beta_d = 1.0 + 0.0361 * cl**1.21 / (ar_119 * x**1.51)
         beta_l = 1.0 + 0.269 * cl**1.45 / (ar_318 * x**1.12)
+        slope_d = slope_d * beta_d - kappa_d * 1.51 * (beta_d - 1.0) / x
+        slope_l = slope_l / beta_l + kappa_l * 1.12 * (beta_l - 1.0) / (x * beta_l**2)
         kappa_d = kappa_d * beta_d
         kappa_l = kappa_l / beta_l
-    return kappa_l, kappa_d
+    if not slopes:
+        return kappa_l, kappa_d
+    clamped = h_over_b < H_OVER_B_MIN
+    return (kappa_l, kappa_d, slope_l.masked_fill(clamped, 0.0), slope_d.masked_fill(clamped, 0.0))
 
 
 def phillips_hunsaker(
@@ -113,20 +131,40 @@ WingConstants = vector_type(5)
 
 
 @warp_func
-def phillips_hunsaker_wp(h_over_b: float, constants: WingConstants, lift_coefficient: float) -> wp.vec2:
-    """(kappa_L, kappa_D) with the high-lift corrections (twin of :func:`influence_ratios` with a
-    lift coefficient). The powers of x share one logarithm: x^a = exp(a ln x)."""
+def ground_effect_factors_wp(h_over_b: float, constants: WingConstants, lift_coefficient: float) -> wp.vec4:
+    """(kappa_L, kappa_D, d kappa_L / dx, d kappa_D / dx) with the high-lift corrections (twin of
+    :func:`influence_ratios` with a lift coefficient and ``slopes``). The powers of x share one
+    logarithm: x^a = exp(a ln x)."""
     x = wp.max(h_over_b, H_OVER_B_MIN)
     lx = wp.log(x)
-    kappa_d = 1.0 - constants[0] * wp.exp(-4.74 * wp.exp(0.814 * lx)) - x * x * wp.exp(
-        -3.88 * wp.exp(0.758 * lx))
-    kappa_l = 1.0 + constants[1] * 288.0 * wp.exp(0.787 * lx) * wp.exp(-9.14 * wp.exp(0.327 * lx)) / (
-        constants[2])
+    p1 = wp.exp(0.814 * lx)
+    p2 = wp.exp(0.758 * lx)
+    p4 = wp.exp(0.327 * lx)
+    e1 = wp.exp(-4.74 * p1)
+    e2 = wp.exp(-3.88 * p2)
+    kappa_d = 1.0 - constants[0] * e1 - x * x * e2
+    bump = constants[1] * 288.0 * wp.exp(0.787 * lx) * wp.exp(-9.14 * p4) / constants[2]
+    kappa_l = 1.0 + bump
+    slope_d = constants[0] * 4.74 * 0.814 * p1 / x * e1 - x * e2 * (2.0 - 3.88 * 0.758 * p2)
+    slope_l = bump * (0.787 - 9.14 * 0.327 * p4) / x
     cl = wp.abs(lift_coefficient)
     if cl > 0.0:
         lc = wp.log(cl)
         beta_d = 1.0 + 0.0361 * wp.exp(1.21 * lc - 1.51 * lx) / constants[3]
         beta_l = 1.0 + 0.269 * wp.exp(1.45 * lc - 1.12 * lx) / constants[4]
+        slope_d = slope_d * beta_d - kappa_d * 1.51 * (beta_d - 1.0) / x
+        slope_l = slope_l / beta_l + kappa_l * 1.12 * (beta_l - 1.0) / (x * beta_l * beta_l)
         kappa_d = kappa_d * beta_d
         kappa_l = kappa_l / beta_l
-    return wp.vec2(kappa_l, kappa_d)
+    if h_over_b < H_OVER_B_MIN:
+        slope_l = 0.0
+        slope_d = 0.0
+    return wp.vec4(kappa_l, kappa_d, slope_l, slope_d)
+
+
+@warp_func
+def phillips_hunsaker_wp(h_over_b: float, constants: WingConstants, lift_coefficient: float) -> wp.vec2:
+    """(kappa_L, kappa_D) with the high-lift corrections (twin of :func:`influence_ratios` with a
+    lift coefficient)."""
+    factors = ground_effect_factors_wp(h_over_b, constants, lift_coefficient)
+    return wp.vec2(factors[0], factors[1])

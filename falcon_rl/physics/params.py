@@ -143,6 +143,7 @@ PARAMETER_TABLE: tuple[ParamRow, ...] = (
     _switch("constant_density", "sea-level ISA density at every height"),
     _switch("no_rate_damping", "no aero rate-derivative terms"),
     _switch("no_propeller_torque", "no propeller reaction torque"),
+    _switch("sea_surface", "over the env's sea (surface.py), not the flat ground"),
     ParamRow("aero_exponents", "[T, 5]", lambda af, _: af.aero.exponents, dtype="int64", per_env=False,
              warp=None, doc="monomial exponents, columns alpha, beta, elevator, aileron, rudder"),
     ParamRow("motor_model", "[N, M]", lambda af, _: [MOTOR_MODELS.index(m.model) for m in af.motors],

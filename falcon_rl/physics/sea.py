@@ -195,15 +195,15 @@ class SeaSurface:
         rate = (speed * torch.sin(self._argument(north, east, time))).sum(-1)
         return _per_env(rate, north)
 
-    def orbital_velocity(self, north: torch.Tensor, east: torch.Tensor, height: torch.Tensor,
-                         time: torch.Tensor | float) -> torch.Tensor:
-        """NED velocity (m/s) of the potential flow of the waves at ``height`` (m) above the mean level
-        (points [N] -> [N, 3], [N, P] -> [N, P, 3]): each component's a w exp(-k h) (cos along the travel,
-        sin up), the water's orbital motion continued into the air above it."""
+    def air_velocity(self, north: torch.Tensor, east: torch.Tensor, height: torch.Tensor,
+                     time: torch.Tensor | float) -> torch.Tensor:
+        """NED velocity (m/s) of the air's potential flow over the waves at ``height`` (m, clamped at 0)
+        above the mean level (points [N] -> [N, 3], [N, P] -> [N, P, 3]): each component's a w exp(-k h)
+        (-cos along the travel, sin up)."""
         argument = self._argument(north, east, time)
         decay = (self.amplitude * self.frequency)[:, None] * torch.exp(
             -self.wavenumber[:, None] * _points(height).clamp_min(0.0)[..., None])
-        along = decay * torch.cos(argument)
+        along = -decay * torch.cos(argument)
         velocity = torch.stack([(along * self.direction_cos[:, None]).sum(-1),
                                 (along * self.direction_sin[:, None]).sum(-1),
                                 -(decay * torch.sin(argument)).sum(-1)], dim=-1)
@@ -251,6 +251,32 @@ def sample_sea(sea: SeaState, num_envs: int, generator: torch.Generator, compone
 
 
 # ---------------------------------------------------------------------------------------- warp twins
+#: pi / 2 in three parts (Cody-Waite): n (pi / 2) is subtracted exactly for |n| < 2^11.
+HALF_PI_PARTS = (1.5703125, 4.837512969970703125e-4, 7.54978995489188216e-8)
+
+
+@warp_func
+def sincos_wp(x: float) -> wp.vec2:
+    """(sin x, cos x) in float32 for the wave sums, ~3x cheaper than ``wp.sin`` and ``wp.cos`` on a CPU:
+    x = n pi/2 + r by Cody-Waite reduction (three parts of pi/2), |r| <= pi/4, then the Taylor polynomials
+    of sin r (to r^9) and cos r (to r^8), whose truncation errors are below 2e-9 and 3e-8, and the quadrant
+    n mod 4 (chosen by arithmetic, without branches). Against the float64 sine and cosine of the same
+    float32 x: within 2e-6 for |x| < 3,000 rad
+    (1e-5 to 1e4 rad: the reduction's rounding grows with n). A wave's phase reaches 3,000 rad at
+    ~1 km from the field's origin for its shortest components."""
+    quadrant = int(x * 0.6366197723675814 + wp.where(x >= 0.0, 0.5, -0.5))  # round to nearest
+    n = float(quadrant)
+    r = ((x - n * 1.5703125) - n * 4.837512969970703125e-4) - n * 7.54978995489188216e-8
+    r2 = r * r
+    sine = r + r * r2 * (-0.16666666666666666 + r2 * (0.008333333333333333 + r2 * (
+        -0.0001984126984126984 + r2 * 2.755731922398589e-06)))
+    cosine = 1.0 + r2 * (-0.5 + r2 * (0.041666666666666664 + r2 * (-0.001388888888888889
+                                                                   + r2 * 2.48015873015873e-05)))
+    odd = float(quadrant & 1)  # branch-free quadrant: random phases would mispredict every branch
+    sign = 1.0 - 2.0 * float((quadrant >> 1) & 1)
+    return wp.vec2(sign * (sine + odd * (cosine - sine)), sign * (cosine - odd * (sine + cosine)))
+
+
 @warp_struct
 class SeaFieldWp:
     """A ``SeaSurface``'s [N, K] float32 tensors as Warp arrays (zero-copy views)."""
@@ -303,10 +329,10 @@ def sea_elevation_rate_wp(sea: SeaFieldWp, i: int, north: float, east: float, ti
 
 
 @warp_func
-def sea_orbital_velocity_wp(sea: SeaFieldWp, i: int, north: float, east: float, height: float,
-                            time: float) -> wp.vec3:
-    """NED orbital velocity (m/s) of env i at ``height`` (m) above the mean level (twin of
-    ``SeaSurface.orbital_velocity``)."""
+def sea_air_velocity_wp(sea: SeaFieldWp, i: int, north: float, east: float, height: float,
+                        time: float) -> wp.vec3:
+    """NED velocity (m/s) of the air's potential flow over env i's waves at ``height`` (m) above the mean
+    level (twin of ``SeaSurface.air_velocity``)."""
     along_n = float(0.0)  # noqa: UP018 (a mutable Warp local)
     along_e = float(0.0)  # noqa: UP018
     up = float(0.0)  # noqa: UP018
@@ -314,7 +340,7 @@ def sea_orbital_velocity_wp(sea: SeaFieldWp, i: int, north: float, east: float, 
     for k in range(sea.amplitude.shape[1]):
         argument = sea_argument_wp(sea, i, k, north, east, time)
         decay = sea.amplitude[i, k] * sea.frequency[i, k] * wp.exp(-sea.wavenumber[i, k] * h)
-        along = decay * wp.cos(argument)
+        along = -decay * wp.cos(argument)
         along_n += along * sea.direction_cos[i, k]
         along_e += along * sea.direction_sin[i, k]
         up += decay * wp.sin(argument)
@@ -333,10 +359,11 @@ __all__ = [
     "jonswap",
     "pierson_moskowitz_wind",
     "sample_sea",
+    "sea_air_velocity_wp",
     "sea_elevation_rate_wp",
     "sea_elevation_wp",
     "sea_field_views",
-    "sea_orbital_velocity_wp",
     "sea_state_height",
+    "sincos_wp",
     "spreading_directions",
 ]

@@ -29,6 +29,7 @@ from .ground_effect import GE_MODES
 from .integrators import INTEGRATORS
 from .params import ModelParams, build_params
 from .rotations import euler_to_quaternion
+from .sea import SeaState, SeaSurface
 from .state import MAX_RESET_POSITION, MAX_RESET_RATE, MAX_RESET_SPEED, MIN_QUATERNION_NORM
 from .switches import ModelSwitches, switch_flags
 from .trim import trim_level
@@ -68,6 +69,11 @@ class Simulator:
         compile: torch backend only: step through ``torch.compile`` of the integration step (one
             fused graph instead of ~1,000 small kernels per RK4 step; the first steps compile it,
             tens of seconds on a CPU).
+        sea: fly every env over a sea: a WMO sea-state code 0-6 or a :class:`~falcon_rl.physics.sea.SeaState`
+            (a wave field per env drawn from this simulator's generator, ``set_sea``; the model switch
+            ``surface="sea"``), or None (the flat ground, unless ``model`` says ``surface="sea"``: a calm
+            sea).
+        sea_components: Airy components of each env's wave field (>= 64).
     """
 
     def __init__(
@@ -88,6 +94,8 @@ class Simulator:
         compile: bool = False,
         model: ModelSwitches | Mapping[str, Any] | None = None,
         stop_at_ground: bool = True,
+        sea: int | SeaState | None = None,
+        sea_components: int = 64,
     ):
         if isinstance(airframe, str):
             airframe = load_airframe(airframe)
@@ -97,6 +105,8 @@ class Simulator:
             raise ValueError(f"num_envs must be >= 1, got {num_envs}")
         if not dt > 0:
             raise ValueError(f"dt must be > 0, got {dt}")
+        if not (isinstance(sea_components, int) and sea_components >= 64):
+            raise ValueError(f"sea_components must be an int >= 64, got {sea_components!r}")
         if warp_cpu_threads is not None and not warp_cpu_threads >= 1:
             raise ValueError(f"warp_cpu_threads must be None or >= 1, got {warp_cpu_threads}")
         engine_cls = engine_class(backend)
@@ -117,12 +127,15 @@ class Simulator:
         self.engine: Engine = engine_cls(EngineSetup(
             airframe=airframe, params=params, num_envs=num_envs, device=device, dtype=dtype, dt=float(dt),
             integrator=integrator, turbulence=turbulence_config(turbulence), seed=seed,
-            options={k: v for k, v in options.items() if k in engine_cls.OPTIONS}))
+            options={k: v for k, v in options.items() if k in engine_cls.OPTIONS},
+            sea_components=sea_components))
         if wind is not None:
             self.wind_ned[:] = steady_wind(wind, num_envs, dtype, device)
         self.stop_at_ground = bool(stop_at_ground)
         self._default: torch.Tensor | None = None
         self._default_command: torch.Tensor | None = None
+        if sea is not None:
+            self.set_sea(sea)
         self.reset()
 
     # ------------------------------------------------------------------ the engine's buffers
@@ -210,6 +223,34 @@ class Simulator:
         mask = torch.ones(self.num_envs, dtype=torch.bool, device=self.device) if mask is None else (
             torch.as_tensor(mask, device=self.device).reshape(self.num_envs).bool())
         self.params.assign(mask, **{name: torch.tensor(value) for name, value in flags.items()})
+        if "surface" in switches:
+            self.engine.sample_surface(mask)
+
+    def set_sea(self, sea: int | SeaState | None, mask: torch.Tensor | None = None) -> None:
+        """Fly the envs of ``mask`` [N] bool (all when None) over a new wave field of ``sea`` (a sea-state
+        code 0-6 or a :class:`~falcon_rl.physics.sea.SeaState`), drawn from this simulator's generator (the
+        same draws whatever the mask), or over the flat ground (None); their surface is sampled at once.
+        Other envs keep theirs."""
+        if mask is not None:
+            mask = torch.as_tensor(mask, device=self.device).reshape(self.num_envs).bool()
+        if sea is None:
+            self.set_model(mask, surface="flat")
+            return
+        state = sea if isinstance(sea, SeaState) else SeaState.from_code(sea)
+        self.set_model(mask, surface="sea")
+        self.engine.draw_sea(state, self.generator, mask)
+
+    @property
+    def sea(self) -> SeaSurface | None:
+        """The envs' wave fields (``SeaSurface``, [N, K] each; rows of envs over the ground unused), or None
+        before any sea was drawn."""
+        return self.engine.sea
+
+    @property
+    def surface(self) -> torch.Tensor:
+        """[N, SURFACE_WIDTH] the surface under each aircraft (``surface.SURFACE_FIELDS``; the engine's
+        buffer)."""
+        return self.engine.surface
 
     # ------------------------------------------------------------------ state
     @property

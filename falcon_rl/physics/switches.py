@@ -21,6 +21,9 @@ rate_damping=False   no_rate_damping       the rate derivatives b[k, i] (p b/2V,
                                            contribute nothing to the aero coefficients
 propeller_torque=    no_propeller_torque   no reaction torque Q a of the propellers (thrust and
 False                                      its moment r x F stay)
+surface="sea"        sea_surface           not a simplification: the env flies over its own wave
+                                           field (``Simulator(sea=...)``, ``Simulator.set_sea``;
+                                           ``surface.py``) instead of the flat ground (row = 0)
 ===================  ====================  ======================================================
 """
 
@@ -33,6 +36,7 @@ from typing import Any
 #: Allowed values of the string switches.
 ACTUATOR_MODELS = ("dynamic", "ideal")
 ATMOSPHERE_MODELS = ("isa", "constant")
+SURFACE_MODELS = ("flat", "sea")
 
 
 @dataclass(frozen=True)
@@ -46,6 +50,8 @@ class ModelSwitches:
         atmosphere: "isa" (ISA density at the CG height) or "constant" (sea-level density).
         rate_damping: aero rate derivatives in the coefficients; False drops them.
         propeller_torque: propeller reaction torque about the thrust axis; False drops it.
+        surface: "flat" (the ground, at height 0) or "sea" (the env's wave field; a calm sea until one
+            is drawn, ``Simulator.set_sea``).
     """
 
     actuators: str = "dynamic"
@@ -53,6 +59,7 @@ class ModelSwitches:
     atmosphere: str = "isa"
     rate_damping: bool = True
     propeller_torque: bool = True
+    surface: str = "flat"
 
     def __post_init__(self) -> None:
         if self.actuators not in ACTUATOR_MODELS:
@@ -61,6 +68,8 @@ class ModelSwitches:
         if self.atmosphere not in ATMOSPHERE_MODELS:
             raise ValueError(f"model switch 'atmosphere' must be one of {ATMOSPHERE_MODELS}, "
                              f"got {self.atmosphere!r}")
+        if self.surface not in SURFACE_MODELS:
+            raise ValueError(f"model switch 'surface' must be one of {SURFACE_MODELS}, got {self.surface!r}")
         for name in ("throttle_lag", "rate_damping", "propeller_torque"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"model switch {name!r} must be True or False, got {getattr(self, name)!r}")
@@ -85,6 +94,7 @@ class ModelSwitches:
             "constant_density": int(self.atmosphere == "constant"),
             "no_rate_damping": int(not self.rate_damping),
             "no_propeller_torque": int(not self.propeller_torque),
+            "sea_surface": int(self.surface == "sea"),
         }
 
 

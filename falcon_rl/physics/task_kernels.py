@@ -6,7 +6,8 @@ writes its step as ``@wp.func`` functions of one env (``i``) and this module giv
 - :class:`SimulatorViews` (the engine's state [N, S], air motion [N] vec3 and geometry [N] as zero-copy
   views, bound by :func:`simulator_views`) and :func:`flight_state`, the derived state a task reads
   (position, NED velocity, Euler angles, body rates, clamped surfaces, mean throttle, airspeed, alpha,
-  beta, height, lower wing-tip height) computed for one env with the same ``@wp.func`` twins and
+  beta, height, the lower wing tip's and the CG's clearance above the surface under them, over water or
+  not) computed for one env with the same ``@wp.func`` twins and
   expressions as the engine's evaluation kernel (no aerodynamics, no propulsion);
 - :class:`MeasuredViews` and :func:`measured_flight_state`: the same flight state read from a given
   (e.g. measured) state TensorDict, for :func:`observe_kernel`, a task's observation of it;
@@ -34,6 +35,7 @@ from .state import (
     THROTTLE_START,
     VELOCITY_START,
 )
+from .surface import CLEARANCE, ELEVATION, OVER_WATER, TIP_CLEARANCE
 from .warp_kernels import flush_denormals_begin, flush_denormals_end
 
 POSITION_START = wp.constant(DOWN_INDEX - 2)
@@ -90,6 +92,7 @@ class SimulatorViews:
     wing_quarter_chord: wp.array(dtype=wp.vec3)
     surface_min: wp.array(dtype=wp.vec3)
     surface_max: wp.array(dtype=wp.vec3)
+    surface: wp.array2d(dtype=wp.float32)  # [N, SURFACE_WIDTH] the surface under each aircraft
 
 
 @wp.struct
@@ -107,8 +110,11 @@ class FlightState:
     airspeed: float
     alpha: float
     beta: float
-    height: float
-    lowest_tip: float  # height of the lower wing tip
+    height: float  # above the flat ground / the sea's mean level
+    lowest_tip: float  # the lower wing tip's height above the surface under it (ground or water)
+    clearance: float  # the CG's height above the surface under it (a radar altimeter's reading)
+    surface_elevation: float  # the surface's elevation under the CG (0 over the ground)
+    over_water: bool  # the env flies over its sea (contact is "water_contact")
 
 
 @wp.func
@@ -147,6 +153,13 @@ def flight_state(sim: SimulatorViews, i: int) -> FlightState:
     f.height = -x[i, DOWN_INDEX]
     wing_height = f.height - wp.dot(wp.vec3(rot[2, 0], rot[2, 1], rot[2, 2]), sim.wing_quarter_chord[i])
     f.lowest_tip = wing_height - 0.5 * sim.span[i] * wp.abs(rot[2, 1])
+    f.clearance = f.height
+    f.surface_elevation = 0.0
+    f.over_water = sim.surface[i, OVER_WATER] != 0.0
+    if f.over_water:
+        f.lowest_tip = sim.surface[i, TIP_CLEARANCE]
+        f.clearance = sim.surface[i, CLEARANCE]
+        f.surface_elevation = sim.surface[i, ELEVATION]
     return f
 
 
@@ -172,14 +185,16 @@ class MeasuredViews:
     alpha: wp.array(dtype=wp.float32)
     beta: wp.array(dtype=wp.float32)
     height: wp.array(dtype=wp.float32)
+    clearance: wp.array(dtype=wp.float32)
     surface_min: wp.array(dtype=wp.vec3)
     surface_max: wp.array(dtype=wp.vec3)
 
 
 @wp.func
 def measured_flight_state(m: MeasuredViews, i: int) -> FlightState:
-    """Env i's flight state as a state TensorDict gives it (surfaces as given, not clamped; the lower
-    wing tip at the CG's height: an observation does not read it)."""
+    """Env i's flight state as a state TensorDict gives it (surfaces as given, not clamped; the surface
+    clearance as given, e.g. a measured altimeter; the lower wing tip at the CG's clearance and not over
+    water: an observation reads neither)."""
     f = FlightState()
     f.position_ned = m.position_ned[i]
     f.velocity_ned = m.velocity_ned[i]
@@ -197,7 +212,10 @@ def measured_flight_state(m: MeasuredViews, i: int) -> FlightState:
     f.alpha = m.alpha[i]
     f.beta = m.beta[i]
     f.height = m.height[i]
-    f.lowest_tip = m.height[i]
+    f.clearance = m.clearance[i]
+    f.surface_elevation = m.height[i] - m.clearance[i]
+    f.lowest_tip = m.clearance[i]
+    f.over_water = False
     return f
 
 
@@ -206,7 +224,8 @@ MEASURED_FIELDS: dict[str, tuple[str, int]] = {
     "position_ned": ("position_ned", 3), "velocity_ned": ("velocity_ned", 3), "euler": ("euler", 3),
     "angular_rate": ("angular_rate_body", 3), "surfaces": ("surface_position", 3),
     "throttle": ("throttle", 0),
-    "airspeed": ("airspeed", 1), "alpha": ("alpha", 1), "beta": ("beta", 1), "height": ("height", 1)}
+    "airspeed": ("airspeed", 1), "alpha": ("alpha", 1), "beta": ("beta", 1), "height": ("height", 1),
+    "clearance": ("surface_clearance", 1)}
 
 
 def measured_views(state: Any, num_envs: int, surface_min: torch.Tensor, surface_max: torch.Tensor
@@ -217,6 +236,8 @@ def measured_views(state: Any, num_envs: int, surface_min: torch.Tensor, surface
     init_warp()  # an engine that is not Warp's own may run the first task kernel of the process
     views, kept = MeasuredViews(), []
     for field, (key, width) in MEASURED_FIELDS.items():
+        if field == "clearance" and key not in state:
+            key = "height"  # a state without the surface (e.g. a layout's subset): over the flat ground
         tensor = state[key].to(torch.float32)
         tensor = tensor.reshape(num_envs, -1) if width == 0 else tensor.reshape(num_envs, width)
         tensor = tensor.contiguous()
@@ -252,12 +273,14 @@ def observe_kernel(name: str, observe: Any, buffers: type, constants: type, modu
 
 def simulator_views(x: torch.Tensor, wind_ned: torch.Tensor, gust_velocity_body: torch.Tensor,
                     span: torch.Tensor, wing_quarter_chord: torch.Tensor, surface_min: torch.Tensor,
-                    surface_max: torch.Tensor) -> Any:
+                    surface_max: torch.Tensor, surface: torch.Tensor) -> Any:
     """A :class:`SimulatorViews` of an engine's float32 tensors: x [N, S], wind and gusts [N, 3], span
-    [N], wing quarter chord, surface limits [N, 3] (zero-copy: the views follow in-place writes)."""
+    [N], wing quarter chord, surface limits [N, 3], the surface samples [N, SURFACE_WIDTH] (zero-copy: the
+    views follow in-place writes)."""
     init_warp()  # an engine that is not Warp's own may run the first task kernel of the process
     views = SimulatorViews()
     views.x = wp.from_torch(x)
+    views.surface = wp.from_torch(surface)
     for name, tensor in (("wind_ned", wind_ned), ("gust_velocity_body", gust_velocity_body),
                          ("wing_quarter_chord", wing_quarter_chord), ("surface_min", surface_min),
                          ("surface_max", surface_max)):

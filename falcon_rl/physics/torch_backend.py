@@ -3,7 +3,8 @@
 One step: the Dryden filters advance once at the current height and airspeed (when turbulence is
 on), then ``integrators.INTEGRATORS[integrator]`` integrates ``dynamics.derivative`` over dt with the
 command held (ideal actuators put on it first, ``dynamics.hold_command``), and
-``dynamics.project`` renormalises the quaternion and saturates the actuators.
+``dynamics.project`` renormalises the quaternion and saturates the actuators; over a sea the surface
+under each aircraft is sampled again (``Engine.sample_surface``), for the next step to hold.
 With ``options={"compile": True}`` the integration step runs through ``torch.compile`` (one fused
 graph instead of ~1,000 small kernels per RK4 step; the first steps compile it). A pickled engine
 leaves the compiled function behind and compiles again in the process that loads it.
@@ -72,6 +73,8 @@ class TorchEngine(Engine):
                 self.advance_turbulence()
             self.x.copy_(self.integrate_step())
             self.time += self.dt
+            if self.sea is not None:
+                self.sample_surface()
 
     def integrate_step(self) -> torch.Tensor:
         """x after one dt under the held command (not written back)."""

@@ -39,6 +39,7 @@ from ._warp import capture_cpu_graph, init_warp, warp_device
 from .derived import DERIVED_WIDTH
 from .engine import Engine, EngineSetup
 from .params import bind_warp_params
+from .sea import SeaSurface, sea_field_views
 from .state import WARP_MAX_MOTORS
 
 #: Smallest CPU slice worth a thread of its own, in envs x physics sub-steps per launch (below it the thread
@@ -104,7 +105,7 @@ class WarpEngine(Engine):
                 "_evaluate_launches", "_substeps", "_evaluation", "_stream", "threads", "slices",
                 "_params_object", "_params", "_params_ptrs", "_turb_placeholders", "_turb_object",
                 "_stop", "generation", "_views", "_step_replay", "_step_replays", "_evaluate_replay",
-                "_reset_inputs", "_reset_replays", "_screen_replay")
+                "_reset_inputs", "_reset_replays", "_screen_replay", "_calm_sea")
 
     @classmethod
     def placement(cls, num_envs: int, device: torch.device, dtype: torch.dtype
@@ -177,7 +178,8 @@ class WarpEngine(Engine):
         turb_key = (None if turb is None else
                     (id(turb), turb.filter.data_ptr(), turb.w20.data_ptr(), turb.noise.data_ptr(),
                      turb.external_noise))
-        return (id(self.params), self.dt, self.integrator, turb_key)
+        sea_key = None if self.sea is None else (id(self.sea), self.sea.amplitude.data_ptr())
+        return (id(self.params), self.dt, self.integrator, turb_key, sea_key)
 
     def _turbulence_inputs(self) -> tuple[list[Any], int]:
         """(views of the Dryden state: filter, W20, noise, rng; the mode code): placeholders and mode 0
@@ -210,10 +212,19 @@ class WarpEngine(Engine):
         views.crashed = wp.from_torch(self.crashed, dtype=wp.bool)
         turbulence, mode = self._turbulence_inputs()
         views.turb_filter, views.turb_w20, views.turb_noise, views.turb_rng = turbulence
+        views.surface = wp.from_torch(self.surface)
+        views.sea = sea_field_views(self._sea_field())
         settings = k.StepSettings()
         settings.dt, settings.integrator = self.dt, k.INTEGRATOR_CODES[self.integrator]
         settings.turb_mode = mode
         return views, self._params, settings
+
+    def _sea_field(self) -> SeaSurface:
+        """The wave fields the kernels read: the drawn ones, or a calm [1, 1] placeholder (held)."""
+        if self.sea is not None:
+            return self.sea
+        self._calm_sea = SeaSurface(*(torch.zeros(1, 1, device=self._torch_device) for _ in range(6)))
+        return self._calm_sea
 
     def rebind(self) -> None:
         """Bind fresh views of the buffers and parameters and record the launches again."""
@@ -226,8 +237,8 @@ class WarpEngine(Engine):
                                     inputs=[views, params, settings, self._substeps, int(self._stop), offset],
                                     device=self.device, record_cmd=True)
                           for offset, count in self.slices]
-        evaluate_inputs = [views.x, views.wind_ned, views.gust_velocity_body, views.gust_rate_body, params,
-                           wp.from_torch(self._evaluation)]
+        evaluate_inputs = [views.x, views.wind_ned, views.gust_velocity_body, views.gust_rate_body,
+                           views.surface, params, wp.from_torch(self._evaluation)]
         self._evaluate_launches = [wp.launch(self._kernels.evaluate_kernel, dim=count,
                                              inputs=[*evaluate_inputs, offset], device=self.device,
                                              record_cmd=True)
@@ -408,3 +419,8 @@ class WarpEngine(Engine):
         """Resets are torch writes into the bound memory; bind again only if a tensor was replaced."""
         if self._params_moved():
             self.rebind()
+
+    def sample_surface(self, mask: torch.Tensor | None = None) -> None:
+        """``Engine.sample_surface``, the wave fields bound again first when they were just allocated."""
+        super().sample_surface(mask)
+        self.check_binding()

@@ -8,7 +8,8 @@ compiles nothing: Warp builds the module on the first launch and caches the bina
 A reset is :func:`reset_kernel` (the masked write of the initial rows, projected, and the derived state
 of the batch in one launch), or masked torch writes into the same memory on the other engines.
 The Dryden turbulence update (``wind.dryden_step_wp``) runs at the start of the step kernel, once per
-step, so the gusts it writes act over the whole step.
+step, so the gusts it writes act over the whole step. Over a sea the surface under the aircraft is
+sampled after each step (``surface.sample_surface_wp``), and that sample is held over the next.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from .dynamics import derivative_wp, evaluate_wp, project_wp
 from .params import WarpParams
 from .propulsion import motor_thrust_wp
 from .rotations import quaternion_to_euler_wp, rotation_matrix_wp
+from .sea import SeaFieldWp
 from .state import (
     ANGULAR_RATE_START,
     DOWN_INDEX,
@@ -33,6 +35,17 @@ from .state import (
     THROTTLE_START,
     VELOCITY_START,
     StateVec,
+)
+from .surface import (
+    CLEARANCE,
+    ELEVATION,
+    OVER_WATER,
+    TIP_CLEARANCE,
+    WAVE_VELOCITY,
+    SurfaceVec,
+    load_surface,
+    sample_surface_wp,
+    store_surface,
 )
 from .wind import NUM_FILTER_STATES, NUM_NOISE, Vec6, Vec8, dryden_step_wp
 
@@ -81,6 +94,9 @@ _VELOCITY_NED, _EULER = DERIVED_OFFSET["velocity_ned"], DERIVED_OFFSET["euler"]
 _AERO_FORCE, _AERO_MOMENT = DERIVED_OFFSET["aero_force_body"], DERIVED_OFFSET["aero_moment_body"]
 _MOTOR_THRUST, _H_OVER_B = DERIVED_OFFSET["motor_thrust"], DERIVED_OFFSET["ge_h_over_b"]
 _GE_LIFT, _GE_DRAG = DERIVED_OFFSET["ge_lift_factor"], DERIVED_OFFSET["ge_drag_factor"]
+_CLEARANCE, _TIP_CLEARANCE = DERIVED_OFFSET["surface_clearance"], DERIVED_OFFSET["lowest_tip_clearance"]
+_ELEVATION, _OVER_WATER = DERIVED_OFFSET["surface_elevation"], DERIVED_OFFSET["over_water"]
+_WAVES = DERIVED_OFFSET["wave_velocity_ned"]
 MIN_NORM, MAX_SPEED = wp.constant(MIN_QUATERNION_NORM), wp.constant(MAX_RESET_SPEED)
 MAX_POSITION, MAX_RATE = wp.constant(MAX_RESET_POSITION), wp.constant(MAX_RESET_RATE)
 #: Turbulence modes of the step kernel: off, noise from the Warp streams, noise read from an array.
@@ -143,6 +159,8 @@ class EngineViews:
     turb_w20: wp.array(dtype=wp.float32)  # [N] wind speed at 20 ft
     turb_noise: wp.array2d(dtype=wp.float32)  # [N, 6] the step's white noise
     turb_rng: wp.array(dtype=wp.int32)  # [2] (seed, step counter) of the noise streams
+    surface: wp.array2d(dtype=wp.float32)  # [N, SURFACE_WIDTH] the surface under each aircraft
+    sea: SeaFieldWp  # [N, K] the wave fields ([1, 1] calm placeholders before a sea is drawn)
 
 
 @wp.struct
@@ -156,12 +174,27 @@ class StepSettings:
 
 
 @wp.func
+def surface_sample(e: EngineViews, p: WarpParams, s: StateVec, time: float, i: int) -> SurfaceVec:
+    """Env i's surface sample at state s and ``time`` over its sea (a calm sea where none was drawn);
+    zeros over the ground."""
+    out = SurfaceVec()
+    if p.sea_surface[i] != 0:
+        q = wp.vec4(s[QUATERNION_START], s[QUATERNION_START + 1], s[QUATERNION_START + 2],
+                    s[QUATERNION_START + 3])
+        row = wp.min(i, e.sea.amplitude.shape[0] - 1)  # the calm [1, 1] placeholder where no sea was drawn
+        out = sample_surface_wp(e.sea, s, rotation_matrix_wp(q), p.span[i], p.wing_quarter_chord[i], time,
+                                row)
+    return out
+
+
+@wp.func
 def advance_env(e: EngineViews, p: WarpParams, g: StepSettings, substeps: int, stop_at_ground: int, i: int):
     """``substeps`` times: x[i] <- project(integrate(hold_ideal(x[i]), dt)) and time[i] += dt, the
-    command held; then the crash state when ``stop_at_ground`` != 0 (twin of ``Engine.stop_crashed``: an
-    env already crashed keeps its state, one whose CG is below the ground stops on it). Integrator: 0
-    Euler, 1 classic RK4 (the stage arithmetic of ``integrators.rk4_step``). With turbulence the gusts
-    are advanced at the start of each sub-step (sub-step k at counter turb_rng[1] - substeps + 1 + k)."""
+    command held, and over a sea the surface sampled at the new state; then the crash state when
+    ``stop_at_ground`` != 0 (twin of ``Engine.stop_crashed``: an env already crashed keeps its state, one
+    whose CG is below the ground, or the water under it, stops on it). Integrator: 0 Euler, 1 classic RK4
+    (the stage arithmetic of ``integrators.rk4_step``). With turbulence the gusts are advanced at the start
+    of each sub-step (sub-step k at counter turb_rng[1] - substeps + 1 + k)."""
     size = e.x.shape[1]
     s = load_state(e.x, i, size)
     start = s
@@ -169,6 +202,11 @@ def advance_env(e: EngineViews, p: WarpParams, g: StepSettings, substeps: int, s
     wind = e.wind_ned[i]
     t = e.time[i]
     dt = g.dt
+    water = p.sea_surface[i] != 0
+    held = SurfaceVec()
+    if water or e.surface[i, OVER_WATER] != 0.0:
+        held = load_surface(e.surface, i)
+    start_held = held
     for k in range(substeps):
         if g.turb_mode != TURBULENCE_OFF:
             advance_turbulence(s, wind, i, e.gust_velocity_body, e.gust_rate_body, e.turb_filter, e.turb_w20,
@@ -177,29 +215,42 @@ def advance_env(e: EngineViews, p: WarpParams, g: StepSettings, substeps: int, s
         gv = e.gust_velocity_body[i]
         gw = e.gust_rate_body[i]
         s = hold_ideal_wp(s, u, p, i)
-        k1 = derivative_wp(s, u, wind, gv, gw, p, i)
+        k1 = derivative_wp(s, u, wind, gv, gw, held, p, i)
         y = StateVec()
         if g.integrator == 0:
             y = s + dt * k1
         else:
-            k2 = derivative_wp(s + (0.5 * dt) * k1, u, wind, gv, gw, p, i)
-            k3 = derivative_wp(s + (0.5 * dt) * k2, u, wind, gv, gw, p, i)
-            k4 = derivative_wp(s + dt * k3, u, wind, gv, gw, p, i)
+            k2 = derivative_wp(s + (0.5 * dt) * k1, u, wind, gv, gw, held, p, i)
+            k3 = derivative_wp(s + (0.5 * dt) * k2, u, wind, gv, gw, held, p, i)
+            k4 = derivative_wp(s + dt * k3, u, wind, gv, gw, held, p, i)
             y = s + (dt / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
         s = project_wp(y, p, i)
         t = t + dt
+        if water:
+            held = surface_sample(e, p, s, t, i)
     if stop_at_ground != 0:
         below = s[DOWN_INDEX] > 0.0
+        if water:
+            below = held[CLEARANCE] < 0.0
         if e.crashed[i]:
             s = start
+            held = start_held
         if below:
             s[DOWN_INDEX] = 0.0
+            if water:
+                s[DOWN_INDEX] = -held[ELEVATION]
             for k in range(VELOCITY_START, ANGULAR_RATE_START + 3):
                 s[k] = 0.0
             e.crashed[i] = True
+            if water:
+                held = surface_sample(e, p, s, t, i)
     for k in range(size):
         e.x[i, k] = s[k]
     e.time[i] = t
+    if water or e.surface[i, OVER_WATER] != 0.0:
+        if not water:  # switched to the ground since the last sample
+            held = SurfaceVec()
+        store_surface(e.surface, i, held)
 
 
 @wp.kernel
@@ -221,15 +272,17 @@ def derivative_kernel(
     wind_ned: wp.array(dtype=wp.vec3),
     gust_velocity_body: wp.array(dtype=wp.vec3),
     gust_rate_body: wp.array(dtype=wp.vec3),
+    surface: wp.array2d(dtype=wp.float32),
     p: WarpParams,
     out: wp.array2d(dtype=wp.float32),
 ):
-    """out[i] <- f(x[i], command[i]) (twin of ``dynamics.derivative``), for checks and tools."""
+    """out[i] <- f(x[i], command[i]) over the held surface sample[i] (twin of ``dynamics.derivative``),
+    for checks and tools."""
     i = wp.tid()
     saved = flush_denormals_begin()
     size = x.shape[1]
     d = derivative_wp(load_state(x, i, size), command[i], wind_ned[i], gust_velocity_body[i],
-                      gust_rate_body[i], p, i)
+                      gust_rate_body[i], load_surface(surface, i), p, i)
     for k in range(size):
         out[i, k] = d[k]
     flush_denormals_end(saved)
@@ -238,11 +291,13 @@ def derivative_kernel(
 @wp.func
 def write_derived(x: wp.array2d(dtype=wp.float32), wind_ned: wp.array(dtype=wp.vec3),
                   gust_velocity_body: wp.array(dtype=wp.vec3), gust_rate_body: wp.array(dtype=wp.vec3),
-                  p: WarpParams, out: wp.array2d(dtype=wp.float32), i: int):
+                  surface: wp.array2d(dtype=wp.float32), p: WarpParams, out: wp.array2d(dtype=wp.float32),
+                  i: int):
     """out[i] <- the derived state of env i in the columns of ``derived.DERIVED_FIELDS`` (twin of
     ``dynamics.derived_columns``)."""
     s = load_state(x, i, x.shape[1])
-    ev = evaluate_wp(s, wind_ned[i], gust_velocity_body[i], gust_rate_body[i], p, i)
+    sample = load_surface(surface, i)
+    ev = evaluate_wp(s, wind_ned[i], gust_velocity_body[i], gust_rate_body[i], sample, p, i)
     rot = ev.rotation
     vel_ned = rot * wp.vec3(s[VELOCITY_START], s[VELOCITY_START + 1], s[VELOCITY_START + 2])
     euler = quaternion_to_euler_wp(wp.vec4(s[QUATERNION_START], s[QUATERNION_START + 1],
@@ -254,7 +309,15 @@ def write_derived(x: wp.array2d(dtype=wp.float32), wind_ned: wp.array(dtype=wp.v
     out[i, _HEIGHT] = ev.height
     out[i, _WING_HEIGHT] = ev.wing_height
     out[i, _THRUST] = ev.thrust
-    out[i, _LOWEST_TIP] = ev.wing_height - half_span_roll
+    lowest_tip = ev.wing_height - half_span_roll
+    out[i, _LOWEST_TIP] = lowest_tip
+    water = sample[OVER_WATER] != 0.0
+    out[i, _CLEARANCE] = wp.where(water, sample[CLEARANCE], ev.height)
+    out[i, _TIP_CLEARANCE] = wp.where(water, sample[TIP_CLEARANCE], lowest_tip)
+    out[i, _ELEVATION] = sample[ELEVATION]
+    out[i, _OVER_WATER] = sample[OVER_WATER]
+    for k in range(3):
+        out[i, _WAVES + k] = sample[WAVE_VELOCITY + k]
     for k in range(3):
         out[i, _SURFACES + k] = ev.surfaces[k]
         out[i, _VELOCITY_NED + k] = vel_ned[k]
@@ -269,7 +332,7 @@ def write_derived(x: wp.array2d(dtype=wp.float32), wind_ned: wp.array(dtype=wp.v
         if m < p.num_motors:
             thrust = motor_thrust_wp(ev.v_air_body, s[THROTTLE_START + m], ev.density, p, i, m)
         out[i, _MOTOR_THRUST + m] = thrust
-    out[i, _H_OVER_B] = ev.wing_height / p.span[i]
+    out[i, _H_OVER_B] = ev.wing_clearance / p.span[i]
     out[i, _GE_LIFT] = ev.kappa_lift
     out[i, _GE_DRAG] = ev.kappa_drag
 
@@ -280,6 +343,7 @@ def evaluate_kernel(
     wind_ned: wp.array(dtype=wp.vec3),
     gust_velocity_body: wp.array(dtype=wp.vec3),
     gust_rate_body: wp.array(dtype=wp.vec3),
+    surface: wp.array2d(dtype=wp.float32),
     p: WarpParams,
     out: wp.array2d(dtype=wp.float32),
     offset: int,
@@ -288,7 +352,7 @@ def evaluate_kernel(
     slice) instead of the torch model."""
     i = wp.tid() + offset
     saved = flush_denormals_begin()
-    write_derived(x, wind_ned, gust_velocity_body, gust_rate_body, p, out, i)
+    write_derived(x, wind_ned, gust_velocity_body, gust_rate_body, surface, p, out, i)
     flush_denormals_end(saved)
 
 
@@ -328,7 +392,8 @@ def reset_kernel(e: EngineViews, p: WarpParams, initial_x: wp.array2d(dtype=wp.f
                  out: wp.array2d(dtype=wp.float32), derive: int, offset: int):
     """Env i = offset + tid: when ``mask[i]``, x[i] <- project(hold_ideal(initial_x[i])) under
     ``initial_command[i]`` (twins of ``dynamics.hold_command`` and ``dynamics.project``), the command
-    written, the clock, gusts and crash flag zeroed (``Engine.reset``); then, with ``derive`` != 0,
+    written, the clock, gusts and crash flag zeroed and the surface sampled (``Engine.reset``); then, with
+    ``derive`` != 0,
     every env's out[i] <- its derived state (:func:`write_derived`): the reset and the state it
     publishes in one launch."""
     i = wp.tid() + offset
@@ -343,7 +408,9 @@ def reset_kernel(e: EngineViews, p: WarpParams, initial_x: wp.array2d(dtype=wp.f
         e.gust_velocity_body[i] = wp.vec3(0.0, 0.0, 0.0)
         e.gust_rate_body[i] = wp.vec3(0.0, 0.0, 0.0)
         e.crashed[i] = False
+        if p.sea_surface[i] != 0 or e.surface[i, OVER_WATER] != 0.0:
+            store_surface(e.surface, i, surface_sample(e, p, s, 0.0, i))
     if derive != 0:
         saved = flush_denormals_begin()
-        write_derived(e.x, e.wind_ned, e.gust_velocity_body, e.gust_rate_body, p, out, i)
+        write_derived(e.x, e.wind_ned, e.gust_velocity_body, e.gust_rate_body, e.surface, p, out, i)
         flush_denormals_end(saved)

@@ -50,9 +50,10 @@ if TYPE_CHECKING:
     from ...physics.task_kernels import TaskStep
 
 #: Why an episode terminated: "termination_reason" holds the index (0: not terminated). Checked in
-#: this order, the first that applies is published.
+#: this order, the first that applies is published ("water_contact", an env over its sea touching the
+#: water, is checked where "ground_contact" is: an env has one surface or the other).
 TERMINATION_REASONS: tuple[str, ...] = ("none", "ground_contact", "alpha_stall", "speed_stall", "lost",
-                                        "non_finite")
+                                        "non_finite", "water_contact")
 #: Index of each reason in :data:`TERMINATION_REASONS`.
 TERMINATION_CODE: dict[str, int] = {name: code for code, name in enumerate(TERMINATION_REASONS)}
 
@@ -308,8 +309,8 @@ class Task(ABC):
 
     def termination_checks(self, state: TensorDictBase) -> dict[str, torch.Tensor]:
         """Torch step: {reason: [N] bool} of the terminations it checks (names of TERMINATION_REASONS):
-        ground contact, alpha stall (|alpha| > k alpha_stall) and speed stall (V_a < V_stall)."""
-        return {"ground_contact": state["ground_contact"],
+        ground or water contact, alpha stall (|alpha| > k alpha_stall) and speed stall (V_a < V_stall)."""
+        return {"ground_contact": state["ground_contact"], "water_contact": state["water_contact"],
                 "alpha_stall": state["alpha"].abs() > self.stall_alpha,
                 "speed_stall": state["airspeed"] < self.stall_speed}
 

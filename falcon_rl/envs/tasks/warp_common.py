@@ -6,7 +6,7 @@
   ``torch.sign`` is 0 at 0, ``torch.remainder``): :func:`clamp_keep_nan`, :func:`torch_sign`,
   :func:`taper_wp`, :func:`gaussian_wp`, :func:`airspeed_margin_penalty_wp`, :func:`wrap_angle_wp`.
 - :func:`termination_code`: the reasons of ``Task.termination_checks`` in the priority order of
-  ``base.TERMINATION_REASONS`` (ground contact, alpha stall, speed stall, lost).
+  ``base.TERMINATION_REASONS`` (ground or water contact, alpha stall, speed stall, lost).
 - :class:`FusedStep`: binds zero-copy Warp views of the simulator's and the task's tensors, records
   the task kernel's launch (and its start kernel's) per slice of the engine (``Engine.kernel_slices``),
   replays them with the engine's ``replayer`` and binds again when a simulator tensor it reads has
@@ -34,6 +34,7 @@ if TYPE_CHECKING:
     from .base import Task
 
 GROUND_CONTACT = wp.constant(TERMINATION_CODE["ground_contact"])
+WATER_CONTACT = wp.constant(TERMINATION_CODE["water_contact"])
 ALPHA_STALL = wp.constant(TERMINATION_CODE["alpha_stall"])
 SPEED_STALL = wp.constant(TERMINATION_CODE["speed_stall"])
 LOST = wp.constant(TERMINATION_CODE["lost"])
@@ -46,9 +47,12 @@ StepOutputs = tuple[torch.Tensor, torch.Tensor, torch.Tensor]
 
 @wp.func
 def termination_code(f: FlightState, stall_alpha: float, stall_speed: float, lost: bool) -> wp.int64:
-    """The first reason that applies (ground contact of the CG or the lower wing tip, |alpha| beyond
-    ``stall_alpha``, airspeed below ``stall_speed``, ``lost``), 0 while flying."""
-    if f.height <= 0.0 or f.lowest_tip <= 0.0:
+    """The first reason that applies (contact of the CG or the lower wing tip with the surface under them:
+    the ground, or the water over a sea; |alpha| beyond ``stall_alpha``, airspeed below ``stall_speed``,
+    ``lost``), 0 while flying."""
+    if f.clearance <= 0.0 or f.lowest_tip <= 0.0:
+        if f.over_water:
+            return wp.int64(WATER_CONTACT)
         return wp.int64(GROUND_CONTACT)
     if wp.abs(f.alpha) > stall_alpha:
         return wp.int64(ALPHA_STALL)
@@ -225,7 +229,7 @@ class FusedStep:
         sim = self.task.sim
         p = sim.params
         return (sim.x, sim.wind_ned, sim.gust_velocity_body, p.span, p.wing_quarter_chord, p.surface_min,
-                p.surface_max)
+                p.surface_max, sim.engine.surface)
 
     def _kernel_tensors(self) -> tuple[torch.Tensor, ...]:
         """The simulator tensors the kernels read, in float32: the tensors themselves, or, for a float64
