@@ -229,7 +229,7 @@ class FusedStep:
         sim = self.task.sim
         p = sim.params
         return (sim.x, sim.wind_ned, sim.gust_velocity_body, p.span, p.wing_quarter_chord, p.surface_min,
-                p.surface_max, sim.engine.surface)
+                p.surface_max, sim.surface)
 
     def _kernel_tensors(self) -> tuple[torch.Tensor, ...]:
         """The simulator tensors the kernels read, in float32: the tensors themselves, or, for a float64
