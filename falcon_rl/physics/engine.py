@@ -58,7 +58,15 @@ from .dynamics import AirInputs, hold_command, project
 from .params import ModelParams
 from .sea import SeaState, SeaSurface, sample_sea
 from .state import ANGULAR_RATE, DOWN_INDEX, NUM_CONTROLS, VELOCITY, StateLayout
-from .surface import CLEARANCE, ELEVATION, OVER_WATER, SURFACE_WIDTH, sample_surface, state_rotation
+from .surface import (
+    CLEARANCE,
+    ELEVATION,
+    OVER_WATER,
+    SURFACE_WIDTH,
+    TIP_CLEARANCE,
+    sample_surface,
+    state_rotation,
+)
 from .wind import Turbulence, TurbulenceConfig
 
 
@@ -161,6 +169,7 @@ class Engine(ABC):
         self.sea: SeaSurface | None = None
         #: [N, S] the state before a step that applies the crash state (allocated on first use).
         self._before: torch.Tensor | None = None
+        self._surface_before: torch.Tensor | None = None
         seed = fresh_seed() if setup.seed is None else int(setup.seed)
         self.generator = make_generator(setup.device, seed)
         self.turbulence: Turbulence | None = (
@@ -237,35 +246,47 @@ class Engine(ABC):
         if self._before is None:
             self._before = torch.empty_like(self.x)
         self._before.copy_(self.x)
+        surface_before = None
+        if self.sea is not None:
+            if self._surface_before is None:
+                self._surface_before = torch.empty_like(self.surface)
+            surface_before = self._surface_before
+            surface_before.copy_(self.surface)
         self.advance(int(substeps))
-        self.stop_crashed(self._before)
+        self.stop_crashed(self._before, surface_before)
 
     @abstractmethod
     def advance(self, substeps: int) -> None:
         """``substeps`` steps of dt under ``self.command``: Dryden gusts (when on), integration,
         projection and the clock, in place."""
 
-    def stop_crashed(self, before: torch.Tensor) -> None:
+    def stop_crashed(self, before: torch.Tensor, surface_before: torch.Tensor | None = None) -> None:
         """The crash state in torch, after the sub-steps: envs already ``crashed`` get ``before`` [N, S]
-        (the state before the step) back; envs whose CG went below the ground (over the sea: the water
-        under it) stop on it and are flagged. No host sync, no [N, S] allocation over the ground
-        (``before`` is overwritten)."""
+        (the state before the step) and ``surface_before`` [N, SURFACE_WIDTH] (their surface rows before
+        the step; None without a sea) back; envs whose CG went below the ground (over the sea: the water
+        under it) stop on it and are flagged. A stopped env's surface row is the step's sample moved to
+        the stop: CG clearance 0 and the lower tip's clearance shifted by the height change (the
+        stations' horizontal positions are unchanged; the air's flow is kept as sampled). No host sync,
+        no [N, S] allocation over the ground (``before`` is overwritten)."""
         x = self.x
-        below = x[:, DOWN_INDEX] > 0.0
-        surface_down = None
-        if self.sea is not None:
-            water = self.surface[:, OVER_WATER] != 0
-            below = torch.where(water, self.surface[:, CLEARANCE] < 0.0, below)
-            surface_down = torch.where(water, -self.surface[:, ELEVATION], 0.0)
-        x.copy_(torch.where(self.crashed[:, None], before, x, out=before))
-        if surface_down is None:
+        crashed = self.crashed
+        below = (x[:, DOWN_INDEX] > 0.0) & ~crashed
+        if surface_before is None:
             x[:, DOWN_INDEX].masked_fill_(below, 0.0)
         else:
-            x[:, DOWN_INDEX].copy_(torch.where(below, surface_down, x[:, DOWN_INDEX]))
+            surface = self.surface
+            water = surface[:, OVER_WATER] != 0
+            below = torch.where(water, surface[:, CLEARANCE] < 0.0, below) & ~crashed
+            stop_down = torch.where(water, -surface[:, ELEVATION], 0.0)
+            stopped = torch.where(below, stop_down, x[:, DOWN_INDEX])
+            landed = below & water
+            surface[:, TIP_CLEARANCE] += torch.where(landed, x[:, DOWN_INDEX] - stopped, 0.0)
+            surface[:, CLEARANCE].masked_fill_(landed, 0.0)
+            surface.copy_(torch.where(crashed[:, None], surface_before, surface))
+            x[:, DOWN_INDEX].copy_(stopped)
+        x.copy_(torch.where(crashed[:, None], before, x, out=before))
         x[:, VELOCITY.start:ANGULAR_RATE.stop].masked_fill_(below[:, None], 0.0)
-        self.crashed |= below
-        if self.sea is not None:
-            self.sample_surface()
+        crashed |= below
 
     def reset(self, initial_x: torch.Tensor, initial_command: torch.Tensor,
               mask: torch.Tensor | None = None) -> None:

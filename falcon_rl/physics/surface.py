@@ -44,6 +44,7 @@ import itertools
 import torch
 
 from ._warp import vector_type, warp_func, wp
+from .rotations import rotation_matrix
 from .sea import SeaFieldWp, SeaSurface, sincos_wp
 from .state import DOWN_INDEX, POSITION, QUATERNION, StateVec
 
@@ -130,8 +131,6 @@ def flat_clearances(height: torch.Tensor, lowest_tip_height: torch.Tensor, sampl
 
 def state_rotation(x: torch.Tensor) -> torch.Tensor:
     """[N, 3, 3] body -> NED of state x [N, S]."""
-    from .rotations import rotation_matrix
-
     return rotation_matrix(x[:, QUATERNION])
 
 
@@ -145,20 +144,11 @@ def sample_surface_wp(sea: SeaFieldWp, s: StateVec, rot: wp.mat33, span: float, 
     wing_height = -root[2]
     qn = 0.25 * span * rot[0, 1]
     qe = 0.25 * span * rot[1, 1]
-    mean = float(0.0)  # noqa: UP018 (mutable Warp locals)
-    asym = float(0.0)  # noqa: UP018
-    mean_n = float(0.0)  # noqa: UP018
-    mean_e = float(0.0)  # noqa: UP018
-    asym_n = float(0.0)  # noqa: UP018
-    asym_e = float(0.0)  # noqa: UP018
-    root_n = float(0.0)  # noqa: UP018
-    root_e = float(0.0)  # noqa: UP018
-    eta_root = float(0.0)  # noqa: UP018
-    tip_right = float(0.0)  # noqa: UP018
-    tip_left = float(0.0)  # noqa: UP018
-    wave_n = float(0.0)  # noqa: UP018
-    wave_e = float(0.0)  # noqa: UP018
-    wave_up = float(0.0)  # noqa: UP018
+    level = wp.vec3()  # (eta_bar, A, eta at the root)
+    north = wp.vec3()  # d/d north of level
+    east = wp.vec3()  # d/d east of level
+    tips = wp.vec2()  # eta at the (right, left) tip
+    wave = wp.vec3()  # the air's flow (north, east, up)
     h = wp.max(wing_height, 0.0)
     inv8b = 1.0 / (8.0 * span)
     for k in range(sea.amplitude.shape[1]):
@@ -166,10 +156,9 @@ def sample_surface_wp(sea: SeaFieldWp, s: StateVec, rot: wp.mat33, span: float, 
         sn = sea.direction_sin[i, k]
         kk = sea.wavenumber[i, k]
         a = sea.amplitude[i, k]
-        phase = kk * (root[0] * c + root[1] * sn) - sea.frequency[i, k] * time + sea.phase[i, k]
-        step = kk * (qn * c + qe * sn)
-        phase_sc = sincos_wp(phase)
-        step_sc = sincos_wp(step)
+        w = sea.frequency[i, k]
+        phase_sc = sincos_wp(kk * (root[0] * c + root[1] * sn) - w * time + sea.phase[i, k])
+        step_sc = sincos_wp(kk * (qn * c + qe * sn))
         sa = phase_sc[0]
         ca = phase_sc[1]
         sb = step_sc[0]
@@ -177,41 +166,30 @@ def sample_surface_wp(sea: SeaFieldWp, s: StateVec, rot: wp.mat33, span: float, 
         c2b = 2.0 * cb * cb - 1.0
         s2b = 2.0 * sb * cb
         spread = (1.0 + 2.0 * cb + c2b) * 0.25
-        mean += a * ca * spread
-        mean_slope = -a * kk * sa * spread
-        mean_n += mean_slope * c
-        mean_e += mean_slope * sn
-        tips = (sb + s2b) * inv8b
-        asym -= a * sa * tips
-        asym_slope = -a * kk * ca * tips
-        asym_n += asym_slope * c
-        asym_e += asym_slope * sn
-        root_slope = -a * kk * sa
-        root_n += root_slope * c
-        root_e += root_slope * sn
-        eta_root += a * ca
-        tip_right += a * (ca * c2b - sa * s2b)
-        tip_left += a * (ca * c2b + sa * s2b)
-        decay = a * sea.frequency[i, k] * wp.exp(-kk * h)
-        wave_n -= decay * ca * c
-        wave_e -= decay * ca * sn
-        wave_up += decay * sa
-    elevation = eta_root + root_n * (position[0] - root[0]) + root_e * (position[1] - root[1])
+        span_odd = (sb + s2b) * inv8b
+        level += a * wp.vec3(ca * spread, -sa * span_odd, ca)
+        slope = -a * kk * wp.vec3(sa * spread, ca * span_odd, sa)
+        north += slope * c
+        east += slope * sn
+        tips += a * wp.vec2(ca * c2b - sa * s2b, ca * c2b + sa * s2b)
+        decay = a * w * wp.exp(-kk * h)
+        wave += decay * wp.vec3(-ca * c, -ca * sn, sa)
+    elevation = level[2] + north[2] * (position[0] - root[0]) + east[2] * (position[1] - root[1])
     tip_drop = 0.5 * span * rot[2, 1]
     out = SurfaceVec()
-    out[MEAN] = mean
-    out[ASYM] = asym
-    out[MEAN_GRAD] = mean_n
-    out[MEAN_GRAD + 1] = mean_e
-    out[ASYM_GRAD] = asym_n
-    out[ASYM_GRAD + 1] = asym_e
+    out[MEAN] = level[0]
+    out[ASYM] = level[1]
+    out[MEAN_GRAD] = north[0]
+    out[MEAN_GRAD + 1] = east[0]
+    out[ASYM_GRAD] = north[1]
+    out[ASYM_GRAD + 1] = east[1]
     out[ORIGIN] = position[0]
     out[ORIGIN + 1] = position[1]
     out[CLEARANCE] = -position[2] - elevation
-    out[TIP_CLEARANCE] = wp.min(wing_height - tip_drop - tip_right, wing_height + tip_drop - tip_left)
-    out[WAVE_VELOCITY] = wave_n
-    out[WAVE_VELOCITY + 1] = wave_e
-    out[WAVE_VELOCITY + 2] = -wave_up
+    out[TIP_CLEARANCE] = wp.min(wing_height - tip_drop - tips[0], wing_height + tip_drop - tips[1])
+    out[WAVE_VELOCITY] = wave[0]
+    out[WAVE_VELOCITY + 1] = wave[1]
+    out[WAVE_VELOCITY + 2] = -wave[2]
     out[ELEVATION] = elevation
     out[OVER_WATER] = 1.0
     return out

@@ -188,11 +188,22 @@ def surface_sample(e: EngineViews, p: WarpParams, s: StateVec, time: float, i: i
 
 
 @wp.func
+def surface_at_stop(sample: SurfaceVec, rise: float) -> SurfaceVec:
+    """``sample`` moved to an aircraft stopped on the water under its CG, ``rise`` m above where it was
+    sampled (the stations' horizontal positions unchanged): CG clearance 0, lower tip clearance + rise."""
+    out = sample
+    out[CLEARANCE] = 0.0
+    out[TIP_CLEARANCE] = sample[TIP_CLEARANCE] + rise
+    return out
+
+
+@wp.func
 def advance_env(e: EngineViews, p: WarpParams, g: StepSettings, substeps: int, stop_at_ground: int, i: int):
     """``substeps`` times: x[i] <- project(integrate(hold_ideal(x[i]), dt)) and time[i] += dt, the
     command held, and over a sea the surface sampled at the new state; then the crash state when
-    ``stop_at_ground`` != 0 (twin of ``Engine.stop_crashed``: an env already crashed keeps its state, one
-    whose CG is below the ground, or the water under it, stops on it). Integrator: 0 Euler, 1 classic RK4
+    ``stop_at_ground`` != 0 (twin of ``Engine.stop_crashed``: an env already crashed keeps its state and
+    surface row, one whose CG is below the ground, or the water under it, stops on it with its sample
+    moved there). Integrator: 0 Euler, 1 classic RK4
     (the stage arithmetic of ``integrators.rk4_step``). With turbulence the gusts are advanced at the start
     of each sub-step (sub-step k at counter turb_rng[1] - substeps + 1 + k)."""
     size = e.x.shape[1]
@@ -230,20 +241,21 @@ def advance_env(e: EngineViews, p: WarpParams, g: StepSettings, substeps: int, s
             held = surface_sample(e, p, s, t, i)
     if stop_at_ground != 0:
         below = s[DOWN_INDEX] > 0.0
+        stop_down = float(0.0)  # noqa: UP018 (a mutable Warp local)
         if water:
             below = held[CLEARANCE] < 0.0
-        if e.crashed[i]:
+            stop_down = -held[ELEVATION]
+        was_crashed = e.crashed[i]
+        if was_crashed:
             s = start
             held = start_held
-        if below:
-            s[DOWN_INDEX] = 0.0
+        if below and not was_crashed:
             if water:
-                s[DOWN_INDEX] = -held[ELEVATION]
+                held = surface_at_stop(held, s[DOWN_INDEX] - stop_down)
+            s[DOWN_INDEX] = stop_down
             for k in range(VELOCITY_START, ANGULAR_RATE_START + 3):
                 s[k] = 0.0
             e.crashed[i] = True
-            if water:
-                held = surface_sample(e, p, s, t, i)
     for k in range(size):
         e.x[i, k] = s[k]
     e.time[i] = t
