@@ -23,6 +23,11 @@ whose first two axes are [T, E]; scalars per aircraft are stored [T, E]. The fil
     gust_velocity_body    [T, E, 3]  m/s, Dryden gust velocity (body)
     gust_rate_body        [T, E, 3]  rad/s, Dryden gust rates (body)
     crashed               [T, E]     bool, the CG went below the ground
+    surface_elevation     [T, E]     m, the sea's elevation under the CG (0 over the ground)
+    surface_clearance     [T, E]     m, CG height above the surface under it
+    lowest_tip_clearance  [T, E]     m, the lower wing tip above the surface under it
+    over_water            [T, E]     1 over the aircraft's sea, 0 over the ground
+    wave_velocity_ned     [T, E, 3]  m/s, the air's flow over the waves at the wing
     ... and the engine's diagnostics when it has them (``physics.derived``): aero_force_body [T, E, 3]
     (N), aero_moment_body [T, E, 3] (N m), motor_thrust [T, E, M] (N), ge_h_over_b, ge_lift_factor,
     ge_drag_factor [T, E]; and, from an env, action [T, E, C], reward [T, E], done [T, E] (bool),
@@ -30,6 +35,17 @@ whose first two axes are [T, E]; scalars per aircraft are stored [T, E]. The fil
     references under ``reference/<name>`` (its ``reference_<name>`` and ``<name>_command`` entries,
     e.g. reference/altitude, reference/bank), its other entries under
     ``task/<name>``, and ``sim_time`` [T, E] (each aircraft's own clock, which restarts at a reset).
+
+A flight over the sea (``Simulator.sea``) also holds the wave fields of the recorded aircraft, enough
+to redraw the sea: ``sea/<component>`` [F, E, K] for the components of
+:data:`~falcon_rl.recording_schema.SEA_COMPONENTS` (amplitude m, wavenumber rad/m, frequency rad/s,
+direction_cos, direction_sin of travel, phase rad; ``physics.sea.SeaSurface``), F distinct snapshots
+of the recorded rows (a new one whenever a row's field changes, e.g. a new draw at a reset), and the
+field ``sea_field`` [T, E] int64, the snapshot each frame flies over (-1: no recorded aircraft over
+the sea then). An aircraft over the ground has zero amplitudes in a snapshot (eta = 0, the flat
+ground). The elevation is eta(n, e, t) = sum_k a_k cos(k_k (n cos_k + e sin_k) - w_k t + phi_k) at
+the aircraft's own clock t (``sim_time`` where recorded, else ``time``). Recordings without a sea
+have neither.
 
 ``meta`` carries at least ``format`` (:data:`RECORDING_FORMAT`), ``airframe`` (a name
 ``falcon_rl.load_airframe`` accepts), ``dt`` (s between frames) and ``labels`` (one per aircraft), and
@@ -42,9 +58,11 @@ checks every ``.npy`` member's header (NumPy format 1.0 or 2.0) — a field's dt
 float, never an object), its shape ([T] for ``time``, [T, E, ...] for a field, the trailing sizes of
 :data:`FIELD_TRAILING_SHAPES`, at least one frame and one aircraft), that the zip member's size equals
 what the header declares, and that all arrays together hold at most ``max_bytes``
-(:data:`MAX_RECORDING_BYTES`, 2 GiB, by default) and ``meta`` at most :data:`MAX_META_BYTES`. Then
-``meta`` is checked field by field (:data:`META_SCHEMA`; nesting at most :data:`MAX_META_DEPTH` deep;
-other keys are kept as they are). Anything else is a :class:`RecordingError` of one line naming the
+(:data:`MAX_RECORDING_BYTES`, 2 GiB, by default) and ``meta`` at most :data:`MAX_META_BYTES`; the wave
+fields likewise (all six components [F, E, K] floats, or none; ``sea_field`` integer). Then ``meta`` is
+checked field by field (:data:`META_SCHEMA`; nesting at most :data:`MAX_META_DEPTH` deep; other keys
+are kept as they are) and the wave fields' values (finite, unit directions, indexed by ``sea_field``).
+Anything else is a :class:`RecordingError` of one line naming the
 file, the field and the constraint. The checks live in :mod:`falcon_rl.recording_schema`.
 """
 
@@ -71,15 +89,20 @@ from .recording_schema import (  # the schema's names are this module's too (tes
     META_SCHEMA,
     RECORDING_FORMAT,
     REQUIRED_FIELDS,
+    SEA_COMPONENTS,
     RecordingError,
     check_layout,
     check_meta,
+    check_sea_layout,
+    check_sea_values,
     check_time,
     read_recording_arrays,
 )
 
 #: Fields of ``Simulator.state`` that are not recorded (constant or bookkeeping).
 _SKIPPED_STATE_FIELDS = frozenset({"time", "surface_rate", "ground_contact"})
+
+
 def quaternion_euler(quaternion: np.ndarray) -> np.ndarray:
     """Aerospace ZYX (roll, pitch, yaw) [..., 3] rad of body-to-NED quaternions [..., 4] (w, x, y, z):
     the NumPy twin of ``physics.rotations.quaternion_to_euler`` for recordings and viewers."""
@@ -92,17 +115,24 @@ def quaternion_euler(quaternion: np.ndarray) -> np.ndarray:
 
 @dataclass
 class Recording:
-    """``T`` frames of ``E`` aircraft: ``time`` [T] s and ``fields`` {name: [T, E, ...]}."""
+    """``T`` frames of ``E`` aircraft: ``time`` [T] s, ``fields`` {name: [T, E, ...]} and, over the
+    sea, the wave fields ``sea`` {component: [F, E, K]} that ``fields["sea_field"]`` [T, E] indexes."""
 
     time: np.ndarray
     fields: dict[str, np.ndarray]
     meta: dict[str, Any] = field(default_factory=dict)
+    sea: dict[str, np.ndarray] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         self.time = np.asarray(self.time, dtype=np.float64)
         self.fields = {name: np.asarray(value) for name, value in self.fields.items()}
+        self.sea = {name: np.asarray(value) for name, value in (self.sea or {}).items()}
         check_layout(self.time.shape, {n: v.shape for n, v in self.fields.items()},
                      {n: v.dtype for n, v in self.fields.items()})
+        index = self.fields.get("sea_field")
+        check_sea_layout({n: v.shape for n, v in self.sea.items()}, {n: v.dtype for n, v in self.sea.items()},
+                         self.num_envs, None if index is None else index.dtype)
+        check_sea_values(self.sea, index)
         check_time(self.time)
         self.meta = {"format": RECORDING_FORMAT, **self.meta}
         self.meta.setdefault("labels", [f"aircraft {e}" for e in range(self.num_envs)])
@@ -125,6 +155,11 @@ class Recording:
             return float(self.meta["dt"])
         return float(np.median(np.diff(self.time))) if self.num_frames > 1 else 0.0
 
+    @property
+    def has_sea(self) -> bool:
+        """Whether the recording holds wave fields (a flight over the sea)."""
+        return bool(self.sea)
+
     def has(self, name: str) -> bool:
         """Whether the field ``name`` was recorded."""
         return name in self.fields
@@ -142,7 +177,8 @@ class Recording:
         index = list(envs)
         labels = self.meta.get("labels", [])
         meta = {**self.meta, "labels": [labels[e] for e in index] if labels else labels}
-        return Recording(self.time, {k: v[:, index] for k, v in self.fields.items()}, meta)
+        return Recording(self.time, {k: v[:, index] for k, v in self.fields.items()}, meta,
+                         {k: v[:, index] for k, v in self.sea.items()})
 
     def save(self, path: str | Path) -> Path:
         """Write ``path`` (.npz, compressed; the suffix is added when missing) whole or not at all."""
@@ -150,6 +186,7 @@ class Recording:
         if path.suffix != ".npz":
             path = path.with_name(path.name + ".npz")
         arrays = {f"field/{name}": value for name, value in self.fields.items()}
+        arrays.update({f"sea/{name}": value for name, value in self.sea.items()})
         meta = np.frombuffer(json.dumps(self.meta).encode(), dtype=np.uint8)
         return write_atomic(path, serialized(
             lambda stream: np.savez_compressed(stream, time=self.time, meta=meta, **arrays)))
@@ -185,21 +222,46 @@ def state_frame(state: Mapping[str, torch.Tensor], env_ids: torch.Tensor | list[
     return frame
 
 
+def sea_snapshot(sea: Any, over_water: torch.Tensor | None,
+                 rows: torch.Tensor | list[int] | None = None) -> np.ndarray | None:
+    """The wave fields [6, E, K] (:data:`SEA_COMPONENTS` in order) of the rows ``rows`` (all when None) of
+    ``sea`` (a ``physics.sea.SeaSurface`` of [N, K] tensors, or None), the amplitudes of the rows not
+    ``over_water`` [N] zeroed (their unused field is the flat ground); None without a sea or when no
+    recorded row is over it."""
+    if sea is None or over_water is None:
+        return None
+    water = (over_water if rows is None else over_water[rows]) != 0
+    if not bool(water.any()):
+        return None
+    stack = torch.stack([getattr(sea, name) if rows is None else getattr(sea, name)[rows]
+                         for name in SEA_COMPONENTS])
+    stack[0] = torch.where(water[:, None], stack[0], torch.zeros_like(stack[0]))
+    return stack.detach().cpu().numpy()
+
+
 class RecordingBuilder:
-    """Accumulates frames {name: [E, ...]} at times t and stacks them into a :class:`Recording`."""
+    """Accumulates frames {name: [E, ...]} at times t, and the wave fields [6, E, K] they fly over, and
+    stacks them into a :class:`Recording`."""
 
     def __init__(self, meta: Mapping[str, Any] | None = None) -> None:
         self.meta: dict[str, Any] = dict(meta or {})
         self.times: list[float] = []
         self.frames: list[dict[str, np.ndarray]] = []
+        self.sea_fields: list[np.ndarray] = []
 
     def __len__(self) -> int:
         return len(self.frames)
 
-    def add(self, time: float, frame: Mapping[str, np.ndarray]) -> None:
-        """Append one frame {name: [E, ...]} at ``time`` s."""
+    def add(self, time: float, frame: Mapping[str, np.ndarray], sea: np.ndarray | None = None) -> None:
+        """Append one frame {name: [E, ...]} at ``time`` s over the wave fields ``sea`` [6, E, K]
+        (:func:`sea_snapshot`; None: no sea), kept once while they do not change (field ``sea_field``)."""
+        frame = dict(frame)
+        if sea is not None:
+            if not self.sea_fields or not np.array_equal(sea, self.sea_fields[-1]):
+                self.sea_fields.append(np.array(sea))
+            frame["sea_field"] = np.full(sea.shape[1], len(self.sea_fields) - 1, dtype=np.int64)
         self.times.append(float(time))
-        self.frames.append(dict(frame))
+        self.frames.append(frame)
 
     def build(self) -> Recording:
         """The recording of the frames so far. A field missing from some frames (the action and reward
@@ -211,7 +273,9 @@ class RecordingBuilder:
         for name, value in fields.items():
             if value.ndim == 1:  # one scalar per frame -> [T, 1]
                 fields[name] = value[:, None]
-        return Recording(np.asarray(self.times), fields, self.meta)
+        sea = ({name: np.stack([f[i] for f in self.sea_fields]) for i, name in enumerate(SEA_COMPONENTS)}
+               if self.sea_fields else {})
+        return Recording(np.asarray(self.times), fields, self.meta, sea)
 
 
 def _filled(frames: list[dict[str, np.ndarray]], name: str) -> list[np.ndarray]:
@@ -229,9 +293,9 @@ def _filled(frames: list[dict[str, np.ndarray]], name: str) -> list[np.ndarray]:
 class FlightLog:
     """Records the aircraft ``env_ids`` of a flight env (anything with ``sim`` and ``control_dt``, and
     optionally ``config`` and ``termination_reasons``, such as :class:`~falcon_rl.envs.FixedWingEnv`)
-    one frame per :meth:`capture`: the simulator's whole state with the engine's diagnostics, plus what
-    the caller adds (action, reward, done, task entries). The recorder transform and the Gymnasium
-    wrappers are built on it.
+    one frame per :meth:`capture`: the simulator's whole state with the engine's diagnostics and, over
+    the sea, the recorded rows' wave fields (``sim.sea``), plus what the caller adds (action, reward,
+    done, task entries). The recorder transform and the Gymnasium wrappers are built on it.
 
     Frame k is at ``time`` = k x ``control_dt`` (a global clock that runs on across resets); each
     aircraft's own simulated time is the field ``sim_time``. ``max_frames`` stops recording (never
@@ -277,7 +341,8 @@ class FlightLog:
             rows = value[self._rows] if isinstance(value, torch.Tensor) else np.asarray(value)[self.env_ids]
             rows = rows.detach().cpu().numpy() if isinstance(rows, torch.Tensor) else rows
             frame[name] = rows[:, 0] if rows.ndim == 2 and rows.shape[1] == 1 else rows
-        self.builder.add(len(self.builder) * float(self.env.control_dt), frame)
+        sea = sea_snapshot(getattr(sim, "sea", None), state.get("over_water", None), self._rows)
+        self.builder.add(len(self.builder) * float(self.env.control_dt), frame, sea)
 
     def recording(self) -> Recording:
         """What was recorded so far."""
@@ -315,22 +380,27 @@ def task_extras(task: Mapping[str, torch.Tensor] | None) -> dict[str, torch.Tens
 def record_simulator(simulator: Any, commands: torch.Tensor | Any, steps: int, substeps: int = 1,
                      meta: Mapping[str, Any] | None = None) -> Recording:
     """Fly ``simulator`` from its current state for ``steps`` frames of ``substeps`` physics steps and
-    record every aircraft. ``commands`` is a fixed [N, C] command, or a callable ``(state) -> [N, C]``.
-    A small helper for scripts and tests; envs are recorded by the recorder transform/wrapper."""
+    record every aircraft (and, over the sea, their wave fields). ``commands`` is a fixed [N, C] command,
+    or a callable ``(state) -> [N, C]``. A small helper for scripts and tests; envs are recorded by the
+    recorder transform/wrapper."""
     builder = RecordingBuilder({"airframe": simulator.airframe.name, "dt": simulator.dt * substeps,
                                 **dict(meta or {})})
     motors = simulator.airframe.num_motors
     state = simulator.state
-    builder.add(float(state["time"][0]), state_frame(state, num_motors=motors))
+    sea = getattr(simulator, "sea", None)
+    builder.add(float(state["time"][0]), state_frame(state, num_motors=motors),
+                sea_snapshot(sea, state.get("over_water", None)))
     for _ in range(steps):
         command = commands(state) if callable(commands) else commands
         simulator.step(command, substeps=substeps)
         state = simulator.state
-        builder.add(float(state["time"][0]), state_frame(state, num_motors=motors))
+        builder.add(float(state["time"][0]), state_frame(state, num_motors=motors),
+                    sea_snapshot(sea, state.get("over_water", None)))
     return builder.build()
 
 
 __all__ = ["FIELD_DTYPE_KINDS", "FIELD_TRAILING_SHAPES", "MAX_META_BYTES", "MAX_META_DEPTH",
-           "MAX_RECORDING_BYTES", "META_SCHEMA", "RECORDING_FORMAT", "REQUIRED_FIELDS", "FlightLog",
-           "Recording", "RecordingBuilder", "RecordingError", "check_layout", "check_meta", "check_time",
-           "quaternion_euler", "record_simulator", "save_recording", "state_frame", "task_extras"]
+           "MAX_RECORDING_BYTES", "META_SCHEMA", "RECORDING_FORMAT", "REQUIRED_FIELDS", "SEA_COMPONENTS",
+           "FlightLog", "Recording", "RecordingBuilder", "RecordingError", "check_layout", "check_meta",
+           "check_time", "quaternion_euler", "record_simulator", "save_recording", "sea_snapshot",
+           "state_frame", "task_extras"]

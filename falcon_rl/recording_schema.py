@@ -4,10 +4,13 @@
 it reads any array data: a field's dtype (bool, integer or float, never an object), its shape ([T] for
 ``time``, [T, E, ...] for a field, the trailing sizes of :data:`FIELD_TRAILING_SHAPES`, at least one
 frame and one aircraft), that the zip member's size equals what the header declares, and that all
-arrays together hold at most ``max_bytes`` and ``meta`` at most :data:`MAX_META_BYTES`. Then ``meta``
-is checked field by field (:data:`META_SCHEMA`; nesting at most :data:`MAX_META_DEPTH` deep). Anything
-else is a :class:`RecordingError` of one line naming the field and the constraint; the same
-:func:`check_layout`, :func:`check_time` and :func:`check_meta` hold for recordings built in code.
+arrays together hold at most ``max_bytes`` and ``meta`` at most :data:`MAX_META_BYTES`; the wave fields
+of a recording over the sea (``sea/<component>`` [F, E, K] floats, :data:`SEA_COMPONENTS`, all six or
+none, with the field ``sea_field`` [T, E] integer) likewise (:func:`check_sea_layout`). Then ``meta``
+is checked field by field (:data:`META_SCHEMA`; nesting at most :data:`MAX_META_DEPTH` deep) and the
+sea's values (:func:`check_sea_values`). Anything else is a :class:`RecordingError` of one line naming
+the field and the constraint; the same :func:`check_layout`, :func:`check_time`, :func:`check_meta`
+and the sea checks hold for recordings built in code.
 """
 
 from __future__ import annotations
@@ -43,7 +46,12 @@ FIELD_TRAILING_SHAPES: dict[str, tuple[int | None, ...]] = {
     "lowest_tip_height": (), "command": (None,), "surface_position": (3,), "throttle": (None,),
     "thrust": (), "aero_coefficients": (6,), "gust_velocity_body": (3,), "gust_rate_body": (3,),
     "crashed": (), "aero_force_body": (3,), "aero_moment_body": (3,), "motor_thrust": (None,),
-    "reward": (), "done": (), "termination_reason": (), "sim_time": ()}
+    "reward": (), "done": (), "termination_reason": (), "sim_time": (), "surface_elevation": (),
+    "surface_clearance": (), "lowest_tip_clearance": (), "over_water": (), "wave_velocity_ned": (3,),
+    "sea_field": ()}
+#: The Airy components of a recorded wave field (``physics.sea.SeaSurface``), each stored [F, E, K].
+SEA_COMPONENTS: tuple[str, ...] = ("amplitude", "wavenumber", "frequency", "direction_cos",
+                                   "direction_sin", "phase")
 
 
 class RecordingError(ValueError):
@@ -92,6 +100,53 @@ def _check_trailing(name: str, trailing: tuple[int, ...], expected: tuple[int | 
                              f"expected [T, E{', ' if expected else ''}{layout}]")
     if any(size < 1 for size in trailing):
         raise RecordingError(f"field {name!r} has an empty axis in shape {trailing}")
+
+
+def check_sea_layout(shapes: Mapping[str, tuple[int, ...]], dtypes: Mapping[str, np.dtype], envs: int,
+                     field_dtype: np.dtype | None) -> None:
+    """Check the shapes and dtypes of a recording's wave fields {component: [F, E, K]} (arrays or
+    headers; empty: no sea) for ``envs`` aircraft, and that of its ``sea_field`` field (None when
+    absent); RecordingError naming the component and the constraint."""
+    if not shapes:
+        if field_dtype is not None:
+            raise RecordingError("field 'sea_field' indexes wave fields, the recording has none (sea/...)")
+        return
+    missing = [name for name in SEA_COMPONENTS if name not in shapes]
+    unknown = sorted(set(shapes) - set(SEA_COMPONENTS))
+    if missing or unknown:
+        raise RecordingError(f"a recording's sea needs exactly the components {', '.join(SEA_COMPONENTS)}; "
+                             f"missing {missing}, unknown {unknown}")
+    first = shapes[SEA_COMPONENTS[0]]
+    for name in SEA_COMPONENTS:
+        shape, dtype = shapes[name], np.dtype(dtypes[name])
+        if len(shape) != 3 or shape != first or shape[0] < 1 or shape[1] != envs or shape[2] < 1:
+            raise RecordingError(f"sea {name!r} has shape {shape}, expected [F, {envs}, K] (F, K >= 1) like "
+                                 f"{SEA_COMPONENTS[0]!r} {first}")
+        if dtype.kind != "f":
+            raise RecordingError(f"sea {name!r} has dtype {dtype}, expected float")
+    if field_dtype is None or np.dtype(field_dtype).kind not in "iu":
+        raise RecordingError("a recording with a sea needs the integer field 'sea_field' [T, E], got "
+                             f"{'none' if field_dtype is None else np.dtype(field_dtype)}")
+
+
+def check_sea_values(sea: Mapping[str, np.ndarray], sea_field: np.ndarray | None) -> None:
+    """The wave fields {component: [F, E, K]} must be finite, with amplitudes >= 0 and directions of unit
+    length, and ``sea_field`` [T, E] must index them (-1: no sea in that frame); RecordingError
+    otherwise."""
+    if not sea:
+        return
+    for name in SEA_COMPONENTS:
+        if not np.all(np.isfinite(sea[name])):
+            raise RecordingError(f"sea {name!r} must be finite")
+    if np.any(sea["amplitude"] < 0):
+        raise RecordingError("sea 'amplitude' must be >= 0")
+    norm = np.hypot(sea["direction_cos"].astype(np.float64), sea["direction_sin"].astype(np.float64))
+    if np.any(np.abs(norm - 1.0) > 1e-3):
+        raise RecordingError("sea 'direction_cos', 'direction_sin' must be unit vectors")
+    count = sea[SEA_COMPONENTS[0]].shape[0]
+    if sea_field is not None and sea_field.size and (sea_field.min() < -1 or sea_field.max() >= count):
+        raise RecordingError(f"field 'sea_field' must index the {count} wave fields (-1: none), got values "
+                             f"in [{sea_field.min()}, {sea_field.max()}]")
 
 
 def _optional_text(value: Any, envs: int) -> bool:
@@ -173,9 +228,6 @@ def _nesting_depth(document: Any) -> int:
     return deepest
 
 
-@dataclass
-
-
 # ------------------------------------------------------------------------------------------ reading
 @dataclass(frozen=True)
 class _ArrayHeader:
@@ -191,11 +243,15 @@ class _ArrayHeader:
 
 
 def _member_name(info: zipfile.ZipInfo) -> str | None:
-    """The array name of a member of a recording (``time``, ``meta``, ``field/<name>``), else None."""
+    """The array name of a member of a recording (``time``, ``meta``, ``field/<name>``,
+    ``sea/<component>``), else None."""
     name = info.filename[:-len(".npy")] if info.filename.endswith(".npy") else None
     if info.filename.startswith("field/") and (name is None or name == "field/"):
         raise RecordingError(f"member {info.filename!r} is not a field array (field/<name>.npy)")
-    return name if name in ("time", "meta") or (name or "").startswith("field/") else None
+    if info.filename.startswith("sea/") and (name is None or name[len("sea/"):] not in SEA_COMPONENTS):
+        raise RecordingError(f"member {info.filename!r} is not a wave field array (sea/<component>.npy, "
+                             f"components {', '.join(SEA_COMPONENTS)})")
+    return name if name in ("time", "meta") or (name or "").startswith(("field/", "sea/")) else None
 
 
 def _read_header(archive: zipfile.ZipFile, info: zipfile.ZipInfo, name: str) -> _ArrayHeader:
@@ -226,6 +282,8 @@ def _read_header(archive: zipfile.ZipFile, info: zipfile.ZipInfo, name: str) -> 
 
 
 def _label(name: str) -> str:
+    if name.startswith("sea/"):
+        return f"sea {name[len('sea/'):]!r}"
     return f"field {name[len('field/'):]!r}" if name.startswith("field/") else name
 
 
@@ -247,15 +305,20 @@ def _check_headers(headers: Mapping[str, _ArrayHeader], max_bytes: int) -> None:
     fields = {name[len("field/"):]: header for name, header in headers.items() if name.startswith("field/")}
     check_layout(headers["time"].shape, {n: h.shape for n, h in fields.items()},
                  {n: h.dtype for n, h in fields.items()}, min_frames=1)
+    sea = {name[len("sea/"):]: header for name, header in headers.items() if name.startswith("sea/")}
+    index = fields.get("sea_field")
+    check_sea_layout({n: h.shape for n, h in sea.items()}, {n: h.dtype for n, h in sea.items()},
+                     fields["position_ned"].shape[1], None if index is None else index.dtype)
     total = sum(header.nbytes for header in headers.values())
     if total > max_bytes:
         raise RecordingError(f"the arrays declare {total} bytes, more than the {max_bytes} bytes allowed "
                              "(max_bytes)")
 
 
-def read_recording_arrays(path: Path, max_bytes: int
-                          ) -> tuple[np.ndarray, dict[str, np.ndarray], dict[str, Any]]:
-    """``time`` [T], the fields {name: [T, E, ...]} and ``meta`` of the recording file ``path``. Every
+def read_recording_arrays(path: Path, max_bytes: int) -> tuple[
+        np.ndarray, dict[str, np.ndarray], dict[str, Any], dict[str, np.ndarray]]:
+    """``time`` [T], the fields {name: [T, E, ...]}, ``meta`` and the wave fields {component: [F, E, K]}
+    (empty without a sea) of the recording file ``path``. Every
     header is read first; ``meta`` (small) is read and its format checked, then the declared layout of
     the arrays (:func:`_check_headers`) before any of them is read, and ``time`` before the fields."""
     with zipfile.ZipFile(path) as archive:
@@ -272,8 +335,11 @@ def read_recording_arrays(path: Path, max_bytes: int
         _check_headers(headers, max_bytes)
         time = _read_array(archive, members.pop("time"))
         check_time(time)
-        fields = {name[len("field/"):]: _read_array(archive, info) for name, info in members.items()}
-    return time, fields, meta
+        fields = {name[len("field/"):]: _read_array(archive, info) for name, info in members.items()
+                  if name.startswith("field/")}
+        sea = {name[len("sea/"):]: _read_array(archive, info) for name, info in members.items()
+               if name.startswith("sea/")}
+    return time, fields, meta, sea
 
 
 def _read_array(archive: zipfile.ZipFile, info: zipfile.ZipInfo) -> np.ndarray:
@@ -295,5 +361,6 @@ def _parse_meta(data: np.ndarray) -> dict[str, Any]:
 
 
 __all__ = ["FIELD_DTYPE_KINDS", "FIELD_TRAILING_SHAPES", "MAX_META_BYTES", "MAX_META_DEPTH",
-           "MAX_RECORDING_BYTES", "META_SCHEMA", "RECORDING_FORMAT", "REQUIRED_FIELDS", "RecordingError",
-           "check_layout", "check_meta", "check_time", "read_recording_arrays"]
+           "MAX_RECORDING_BYTES", "META_SCHEMA", "RECORDING_FORMAT", "REQUIRED_FIELDS", "SEA_COMPONENTS",
+           "RecordingError", "check_layout", "check_meta", "check_sea_layout", "check_sea_values",
+           "check_time", "read_recording_arrays"]

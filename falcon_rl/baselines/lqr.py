@@ -142,12 +142,15 @@ def _grid(airframe: Airframe, heights: list[float], speeds: list[float], full: b
     return GainSchedule(t(heights), t(speeds), grid(Ks), grid(xs), grid(us), grid(cs), radius)
 
 
-def _trimmable_speeds(airframe: Airframe, fractions: tuple[float, ...], height: float) -> list[float]:
+def _trimmable_speeds(airframe: Airframe, fractions: tuple[float, ...], *heights: float,
+                      ground_effect: bool | str = True) -> list[float]:
+    """The airspeeds ``fractions`` x cruise at which the airframe trims at every one of ``heights``."""
     speeds = []
     for f in fractions:
         v = f * airframe.envelope.cruise_speed
         try:
-            trim_level(airframe, v, height)
+            for height in heights:
+                trim_level(airframe, v, height, ground_effect=ground_effect)
         except TrimError:
             continue
         speeds.append(v)
@@ -162,10 +165,14 @@ def altitude_schedule(airframe: Airframe, dt: float, ground_effect: bool | str =
     return _grid(airframe, heights, speeds, False, ground_effect, dt)
 
 
-def attitude_schedule(airframe: Airframe, dt: float, height: float = 100.0) -> GainSchedule:
-    """Full-state LQRI (bank, climb rate, airspeed) at ``height`` x airspeeds 0.8..1.2 cruise."""
-    speeds = _trimmable_speeds(airframe, (0.8, 0.9, 1.0, 1.1, 1.2), height)
-    return _grid(airframe, [height], speeds, True, False, dt)
+def attitude_schedule(airframe: Airframe, dt: float, height: float = 100.0,
+                      heights: tuple[float, ...] | None = None, ground_effect: bool | str = False
+                      ) -> GainSchedule:
+    """Full-state LQRI (bank, climb rate, airspeed) at ``height`` (or on the grid ``heights``, m, with
+    ``ground_effect``) x airspeeds 0.8..1.2 cruise."""
+    grid = list(heights or (height,))
+    speeds = _trimmable_speeds(airframe, (0.8, 0.9, 1.0, 1.1, 1.2), *grid, ground_effect=ground_effect)
+    return _grid(airframe, grid, speeds, True, ground_effect, dt)
 
 
 class _LQRPolicy(TensorDictModuleBase):
@@ -243,14 +250,16 @@ class AltitudeLQR(_LQRPolicy):
 class AttitudeLQR(_LQRPolicy):
     """LQRI for the attitude task: action [elevator, aileron, rudder, throttle]."""
 
+    #: The ("task", ...) commands the policy reads.
+    command_keys: tuple[str, ...] = ("bank_command", "climb_rate_command", "airspeed_command")
+
     def __init__(self, airframe: Airframe, dt: float = 0.01, device: str | torch.device = "cpu",
-                 dtype: torch.dtype = torch.float32):
-        schedule = attitude_schedule(airframe, dt).to(torch.device(device), dtype)
+                 dtype: torch.dtype = torch.float32, schedule: GainSchedule | None = None):
+        schedule = (schedule or attitude_schedule(airframe, dt)).to(torch.device(device), dtype)
         limit = torch.tensor(3.0 * ATTITUDE_INTEGRAL_MAX, dtype=dtype, device=device)
         keys = [("state", k) for k in ("velocity_body", "velocity_ned", "angular_rate_body", "euler",
                                        "height", "airspeed", "surface_position", "throttle", "time")]
-        super().__init__(schedule, dt, limit, [*keys, ("task", "bank_command"),
-                                               ("task", "climb_rate_command"), ("task", "airspeed_command")])
+        super().__init__(schedule, dt, limit, [*keys, *(("task", k) for k in self.command_keys)])
 
     @classmethod
     def from_env(cls, env: FixedWingEnv) -> AttitudeLQR:
@@ -260,11 +269,17 @@ class AttitudeLQR(_LQRPolicy):
 
     def forward(self, td: TensorDictBase) -> TensorDictBase:
         v = flat_scalars(td)  # [N] scalars
-        euler, height, airspeed = v["state", "euler"], v["state", "height"], v["state", "airspeed"]
+        bank, climb, speed = (v["task", k] for k in self.command_keys)
+        td.set(self.out_keys[0], self.control(v, bank, climb, speed, v["state", "height"]))
+        return td
+
+    def control(self, v: TensorDictBase, bank: torch.Tensor, climb: torch.Tensor, speed: torch.Tensor,
+                height: torch.Tensor) -> torch.Tensor:
+        """[N, 4] action holding ``bank`` (rad), ``climb`` (m/s) and ``speed`` (m/s) [N] from the [N]
+        scalars ``v`` of the env's TensorDict, with the gains scheduled at ``height`` [N] m."""
+        euler, airspeed = v["state", "euler"], v["state", "airspeed"]
         x = reduced_state(v["state"], FULL_STATES)
         K, x_trim, u_trim, _ = self.schedule.at(height, airspeed)
-        bank, climb, speed = (v["task", k] for k in ("bank_command", "climb_rate_command",
-                                                      "airspeed_command"))
         x_ref = x_trim.clone()
         uvw = x_trim[:, _UVW]
         x_ref[:, _UVW] = uvw * (speed / uvw.norm(dim=-1)).unsqueeze(-1)
@@ -280,8 +295,7 @@ class AttitudeLQR(_LQRPolicy):
         climb_rate = -v["state", "velocity_ned"][:, S.DOWN]
         error = torch.stack([euler[:, S.ROLL] - bank, climb_rate - climb, airspeed - speed], dim=-1)
         z = self._integrate(error, v["state", "time"])
-        td.set(self.out_keys[0], self._control(x, x_ref, z, K, u_trim))
-        return td
+        return self._control(x, x_ref, z, K, u_trim)
 
 
 __all__ = ["AltitudeLQR", "AttitudeLQR", "GainSchedule", "altitude_schedule", "attitude_schedule"]

@@ -35,6 +35,7 @@ BUILTIN_GYM_IDS: dict[str, tuple[str, int]] = {
     "attitude": ("falcon_rl/Attitude-v0", 600),
     "climb_descend": ("falcon_rl/ClimbDescend-v0", 1200),
     "path_following": ("falcon_rl/PathFollowing-v0", 800),
+    "sea_skimming": ("falcon_rl/SeaSkimming-v0", 600),
     "trajectory": ("falcon_rl/Trajectory-v0", 800),
 }
 _ENTRY_POINT = "falcon_rl.envs.gym:CoreAircraftEnv"

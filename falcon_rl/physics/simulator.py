@@ -303,8 +303,10 @@ class Simulator:
     def _check_initial(self, x: torch.Tensor, command: torch.Tensor, mask: torch.Tensor | None) -> None:
         """ValueError (one line) unless the reset rows of ``x`` [N, S] and ``command`` [N, 4] are
         finite, have a quaternion that normalises into an attitude, lie in the physical ranges
-        (``MAX_RESET_*``, height >= 0) and command within [-1, 1]. Rows outside ``mask`` are not read."""
+        (``MAX_RESET_*``, height above the ground or the water under it) and command within [-1, 1]. Rows
+        outside ``mask`` are not read."""
         rows = torch.arange(self.num_envs, device=self.device) if mask is None else mask.nonzero().flatten()
+        floor = self._water_under(x)[rows]
         x, command = x[rows], command[rows]
         speed = torch.linalg.vector_norm(x[:, S.VELOCITY], dim=-1)
         checks = (
@@ -315,7 +317,7 @@ class Simulator:
              torch.linalg.vector_norm(x[:, S.QUATERNION], dim=-1) < MIN_QUATERNION_NORM),
             (f"position beyond {MAX_RESET_POSITION:g} m",
              (x[:, S.POSITION].abs() > MAX_RESET_POSITION).any(-1)),
-            ("height below the ground (< 0 m)", S.height(x) < 0.0),
+            ("height below the surface (the ground at 0 m, or the water under it)", S.height(x) < floor),
             (f"speed above {MAX_RESET_SPEED:g} m/s", speed > MAX_RESET_SPEED),
             (f"body rate above {MAX_RESET_RATE:g} rad/s",
              (x[:, S.ANGULAR_RATE].abs() > MAX_RESET_RATE).any(-1)),
@@ -326,6 +328,17 @@ class Simulator:
             if bool(bad.any()):
                 envs = rows[bad].tolist()
                 raise ValueError(f"initial {what} for envs {envs[:10]}{' ...' if len(envs) > 10 else ''}")
+
+    def _water_under(self, x: torch.Tensor) -> torch.Tensor:
+        """[N] the elevation (m) at a reset (clock 0) of the water under the CG of state x [N, S] of the envs
+        over their sea, 0 over the ground (non-finite positions give 0: the finiteness check names them)."""
+        sea, flags = self.sea, self.params.sea_surface != 0
+        if sea is None or not bool(flags.any()):
+            return torch.zeros(x.shape[0], device=x.device, dtype=x.dtype)
+        position = torch.nan_to_num(x[:, S.POSITION], nan=0.0, posinf=0.0, neginf=0.0)
+        north, east = (position[:, k].to(sea.amplitude.dtype) for k in (0, 1))
+        eta = sea.elevation(north, east, 0.0)
+        return torch.where(flags, eta.to(x.dtype), 0.0)
 
     def _compose_initial(self, initial: Mapping[str, torch.Tensor], x: torch.Tensor,
                          cmd: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:

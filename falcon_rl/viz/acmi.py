@@ -29,8 +29,11 @@ conversion) and rotates each attitude onto the local level at the aircraft (meri
 Numbers are written with 1e-9 deg (0.1 mm) in position, 1 mm in altitude and 1e-4 deg in attitude.
 Besides ``T`` it writes, where recorded, ``TAS`` (m/s, the recorded airspeed), ``IAS`` (m/s, the
 equivalent airspeed in the ISA atmosphere, equal to the indicated airspeed at these low speeds),
-``AOA`` and ``AOS`` (deg), ``AGL`` (m, the CG height above the ground) and ``Throttle`` (0..1, mean
-over motors). Files are written whole or not at all (:func:`falcon_rl.atomic_files.write_atomic`).
+``AOA`` and ``AOS`` (deg), ``AGL`` (m, the CG height above the surface under it: the ground, or the
+water of a sea, ``surface_clearance`` where recorded, else ``height``) and ``Throttle`` (0..1, mean
+over motors). A recording over the sea also names its sea in the global ``Comments`` and writes a marker
+riding the water under each aircraft that carries the wave field (:mod:`.acmi_sea`). Files are written
+whole or not at all (:func:`falcon_rl.atomic_files.write_atomic`).
 
 :func:`read_acmi` streams the file line by line and keeps, per object, only the values its lines set
 and the frames where it is alive, so that time and memory grow with the file, not with objects x
@@ -57,6 +60,7 @@ import numpy as np
 from ..atomic_files import serialized, write_atomic
 from ..constants import G0, LAPSE, R_AIR, T0
 from ..recording import Recording, quaternion_euler
+from .acmi_sea import FIRST_SEA_ID, SEA_MARKER_TYPE, SeaTrack, sea_comments, sea_tracks, wave_field_text
 from .geodesy import DEFAULT_REFERENCE, ReferencePoint, euler_to_local_level, ned_to_geodetic
 
 #: The file type and version lines every ACMI file starts with.
@@ -189,7 +193,9 @@ def _numeric_properties(rec: Recording, alt: np.ndarray) -> tuple[dict[str, np.n
         props["AOA"] = np.degrees(np.asarray(rec["alpha"], np.float64))
     if rec.has("beta"):
         props["AOS"] = np.degrees(np.asarray(rec["beta"], np.float64))
-    if rec.has("height"):
+    if rec.has("surface_clearance"):
+        props["AGL"] = np.asarray(rec["surface_clearance"], np.float64)
+    elif rec.has("height"):
         props["AGL"] = np.asarray(rec["height"], np.float64)
     if rec.has("throttle"):
         props["Throttle"] = np.asarray(rec["throttle"], np.float64).reshape(rec.num_frames, rec.num_envs,
@@ -236,11 +242,15 @@ def write_acmi(rec: Recording, path: str | Path, reference: ReferencePoint | Non
     time = rec.time - min(0.0, float(rec.time[0]))
     if not np.all(np.isfinite(time)):
         raise ValueError("recording time has non-finite values")
+    sea = sea_comments(rec)
+    comments = " | ".join(text for text in (comments, sea) if text) or None
     lines = acmi_header(ref, reference_time, title=title or f"falcon-rl recording ({airframe or 'aircraft'})",
                         author=author, comments=comments)
     encoders = [AcmiObjectEncoder(FIRST_OBJECT_ID + e, names[e], colors[e],
                                   extra={"ShortName": str(airframe)} if airframe else None)
                 for e in range(envs)]
+    markers = [_SeaMarker(track, encoders[track.env], names[track.env], colors[track.env], ref)
+               for track in sea_tracks(rec, ref, time)]
     for k in range(rec.num_frames):
         lines.append("#" + format_number(float(time[k]), 6))
         for e, encoder in enumerate(encoders):
@@ -250,11 +260,46 @@ def write_acmi(rec: Recording, path: str | Path, reference: ReferencePoint | Non
                                 decimals=decimals)
             if line is not None:
                 lines.append(line)
+        for marker in markers:
+            lines.extend(marker.lines(k))
     text = "\n".join(lines) + "\n"
     if path.name.endswith(".zip.acmi"):
         member = path.name[: -len(".zip.acmi")] + ".txt.acmi"
         return write_atomic(path, serialized(lambda stream: _zip_one(stream, member, text)))
     return write_atomic(path, text)
+
+
+class _SeaMarker:
+    """The lines of the marker riding the water under one aircraft (:mod:`.acmi_sea`): written while the
+    aircraft is over its sea, removed while it is not, written anew with its properties when the field
+    changes."""
+
+    def __init__(self, track: SeaTrack, aircraft: AcmiObjectEncoder, name: str, color: str,
+                 reference: ReferencePoint) -> None:
+        self.track, self.aircraft, self.name, self.color = track, aircraft, name, color
+        self.reference = reference
+        self.encoder: AcmiObjectEncoder | None = None
+        self.field = -1
+
+    def lines(self, frame: int) -> list[str]:
+        index = int(self.track.field[frame])
+        if index < 0:
+            removed = [f"-{self.encoder.hex_id}"] if self.encoder is not None else []
+            self.encoder, self.field = None, -1
+            return removed
+        if self.encoder is None or index != self.field:
+            field = self.track.fields[index]
+            self.encoder = AcmiObjectEncoder(
+                FIRST_SEA_ID + self.track.env, f"sea under {self.name}", self.color, kind=SEA_MARKER_TYPE,
+                extra={"Parent": self.aircraft.hex_id, "SeaState": str(field.sea_state),
+                       "WaveHeight": format_number(field.significant_height, 3),
+                       "WaveField": wave_field_text(field)})
+            self.field = index
+        clock = {} if self.track.clock is None else {"WaveClock": float(self.track.clock[frame])}
+        line = self.encoder.line(float(self.track.lon[frame] - self.reference.longitude_deg),
+                                 float(self.track.lat[frame] - self.reference.latitude_deg),
+                                 float(self.track.alt[frame]), 0.0, 0.0, 0.0, clock, {"WaveClock": 3})
+        return [line] if line is not None else []
 
 
 def _zip_one(stream: IO[bytes], member: str, text: str) -> None:

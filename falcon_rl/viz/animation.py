@@ -1,6 +1,8 @@
 """Animations of flight recordings: GIF (imageio, Pillow plugin) or MP4 (imageio with imageio-ffmpeg),
 one :class:`~.scene.FrameRenderer` frame per written frame, every aircraft of the recording in one
-scene with its trail coloured by bank angle.
+scene with its trail coloured by bank angle. A recording over the sea draws the sea (the wave field of
+the first aircraft over it in each frame, at that aircraft's clock: :func:`.sea.scene_sea`) instead of
+the ground.
 
 Timing: the recording's frames are ``dt`` seconds apart. Every ``every``-th frame is drawn and the file
 plays at ``fps`` frames per second, so it runs ``every * dt * fps`` times real time. By default
@@ -21,6 +23,7 @@ import numpy as np
 
 from ..recording import Recording, quaternion_euler
 from .scene import FrameRenderer
+from .sea import scene_sea
 
 #: Suffixes write_animation understands.
 ANIMATION_SUFFIXES: tuple[str, ...] = (".gif", ".mp4")
@@ -114,7 +117,10 @@ def write_animation(rec: Recording, path: str | Path, fps: float = 20.0, every: 
             points = np.arange(t, -1, -stride)[::-1]
             trails = [position[points, e] for e in range(rec.num_envs)]
             banks = [bank[points, e] for e in range(rec.num_envs)]
-            writer.append(renderer.render(position[t], quaternion[t], trails, banks, time=float(rec.time[t])))
+            sea = scene_sea(rec, int(t))
+            writer.append(renderer.render(position[t], quaternion[t], trails, banks, time=float(rec.time[t]),
+                                          sea=None if sea is None else sea[0],
+                                          sea_time=None if sea is None else sea[1]))
     finally:
         writer.close()
         renderer.close()

@@ -6,8 +6,9 @@ recorders::
     env = TransformedEnv(make_env("attitude", "volantex_ranger", num_envs=2), FlightPixels(160, 120))
     td = env.rollout(100)                 # td["next", "pixels"]: [2, 100, 120, 160, 3] uint8
 
-Each env is drawn at every reset and step (about 10-20 ms per frame and env on a CPU core), so it is
-meant for a few envs (at most ``MAX_PIXEL_ENVS``): evaluation and videos, not training batches.
+Each env is drawn at every reset and step (about 10-20 ms per frame and env on a CPU core; an env over
+its sea is drawn over its waves, a few ms more), so it is meant for a few envs (at most
+``MAX_PIXEL_ENVS``): evaluation and videos, not training batches.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from torchrl.envs import Transform
 
 from ..physics import state as S
 from ..transforms import flight_env
-from .live import FlightView
+from .live import FlightView, simulator_sea
 
 #: The most envs a FlightPixels transform draws.
 MAX_PIXEL_ENVS = 16
@@ -63,10 +64,11 @@ class FlightPixels(Transform):
         time = sim.time.detach().cpu().numpy()
         restarted = None if reset is None else reset.reshape(-1).cpu().numpy()
         frames = []
+        seas = simulator_sea(sim, list(range(sim.num_envs)))
         for e, view in enumerate(self._views):
             if restarted is not None and restarted[e]:
                 view.reset()
-            view.observe(x[e:e + 1, S.POSITION], x[e:e + 1, S.QUATERNION], float(time[e]))
+            view.observe(x[e:e + 1, S.POSITION], x[e:e + 1, S.QUATERNION], float(time[e]), seas[e])
             frames.append(view.frame())
         td.set(self.out_key, torch.as_tensor(np.stack(frames), device=td.device))
         return td

@@ -21,6 +21,8 @@ from ..tasks.registry import Ref, resolve
 
 #: The live view the renders draw with.
 FLIGHT_VIEW: Ref = "falcon_rl.viz.live:FlightView"
+#: The wave field and clock of each rendered env over its sea (None over the ground).
+SIMULATOR_SEA: Ref = "falcon_rl.viz.live:simulator_sea"
 #: Gymnasium render modes of the falcon_rl envs.
 RENDER_MODES: tuple[str, ...] = ("rgb_array", "human")
 
@@ -58,12 +60,14 @@ class GymRenderer:
 
     def observe(self, reset_rows: np.ndarray | None = None) -> None:
         """After a reset (``reset_rows``: which aircraft restarted, all when empty) or a step: read where
-        the aircraft are; in human mode, show the frame."""
+        the aircraft are and the sea under them; in human mode, show the frame."""
         if reset_rows is not None:
             self.view.reset(None if reset_rows.size == 0 else np.flatnonzero(reset_rows[self.rows]))
         sim = self.base.sim
         x = sim.x[self.rows].detach().cpu().numpy()
-        self.view.observe(x[:, S.POSITION], x[:, S.QUATERNION], float(sim.time[self.rows[0]]))
+        seas = resolve(SIMULATOR_SEA)(sim, self.rows)
+        sea = next((s for s in seas if s is not None), None)  # the sea of the first aircraft over one
+        self.view.observe(x[:, S.POSITION], x[:, S.QUATERNION], float(sim.time[self.rows[0]]), sea=sea)
         if self.mode == "human":
             self.show()
 

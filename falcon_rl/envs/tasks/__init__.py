@@ -24,6 +24,7 @@ from .registry import (
     task_spec,
     unregister_task,
 )
+from .sea_skimming import SeaSkimmingConfig, SeaSkimmingTask
 from .trajectory import TrajectoryConfig, TrajectoryTask
 
 __all__ = [
@@ -40,6 +41,8 @@ __all__ = [
     "Metric",
     "PathFollowingConfig",
     "PathFollowingTask",
+    "SeaSkimmingConfig",
+    "SeaSkimmingTask",
     "Task",
     "TaskConfig",
     "TaskSpec",

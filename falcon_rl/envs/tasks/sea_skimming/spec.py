@@ -1,0 +1,26 @@
+"""The sea-skimming task's record: its protocol, metrics, baselines, figure and training defaults
+(:class:`~falcon_rl.envs.tasks.registry.TaskSpec`), registered on import."""
+
+from __future__ import annotations
+
+from ..registry import TRAINING_DECIMATION, TRIM_HOLD, Metric, TaskSpec, register_task
+from .task import SeaSkimmingConfig, SeaSkimmingTask
+
+#: The sea-skimming protocol's columns: water contacts, survival, clearance RMSE (in spans and in m), the
+#: lower tip's closest approach, and the power saved against free flight at the same airspeed.
+SEA_SKIMMING_METRICS: tuple[Metric, ...] = (
+    Metric("water_contact_rate", "Contact"), Metric("survival", "Surv."),
+    Metric("clearance_rmse_span", "RMSE", "b"), Metric("clearance_rmse_m", "RMSE", "m"),
+    Metric("min_tip_clearance_m", "Tip min", "m"), Metric("power_saved", "Power saved"))
+
+SPEC = register_task(TaskSpec(
+    name="sea_skimming", task=SeaSkimmingTask, config=SeaSkimmingConfig, gym_id="falcon_rl/SeaSkimming-v0",
+    title="Sea skimming: clearance hold over waves",
+    protocol="falcon_rl.evaluation.sea_skimming:sea_skimming_protocol", metrics=SEA_SKIMMING_METRICS,
+    select_on="clearance_rmse_span",
+    controllers={"lqr": "falcon_rl.baselines.sea_skimming:SeaSkimmingLQR.from_env", "trim": TRIM_HOLD},
+    figure="falcon_rl.viz.sea_skimming:plot_sea_skimming",
+    training={"ppo": {"num_envs": 256, "rollout_steps": 32, "frames": 8_000_000, "episode_seconds": 30.0,
+                      "reward_scale": 0.1, "eval_every": 500_000, "keep_best": True}},
+    defaults={"decimation": TRAINING_DECIMATION},
+))

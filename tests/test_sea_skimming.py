@@ -1,0 +1,114 @@
+"""The sea-skimming task: specs, Gymnasium, the per-episode sea, torch-warp parity of the task's step,
+the LQR over a slight sea on both backends, and the protocol's scoring."""
+
+from __future__ import annotations
+
+import gymnasium
+import pytest
+import torch
+from gymnasium.utils.env_checker import check_env
+from torchrl.envs.utils import check_env_specs
+
+import falcon_rl  # noqa: F401 (registers the Gymnasium ids)
+from falcon_rl import make_env
+from falcon_rl.envs.tasks import TERMINATION_CODE, task_spec
+from falcon_rl.evaluation.sea_skimming import sea_skimming_metrics
+
+needs_warp = pytest.mark.skipif(pytest.importorskip("warp") is None, reason="warp-lang is not installed")
+BACKENDS = ["torch", pytest.param("warp", marks=needs_warp)]
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_the_env_passes_torchrl_spec_check(backend):
+    env = make_env("sea_skimming", "volantex_ranger", num_envs=3, backend=backend, seed=0)
+    check_env_specs(env, seed=0)
+
+
+def test_the_gym_id_alone_makes_a_checked_env():
+    env = gymnasium.make("falcon_rl/SeaSkimming-v0")
+    check_env(env.unwrapped)
+    observation, _ = env.reset(seed=1)
+    assert observation.shape == (15,)
+
+
+def test_each_episode_draws_its_sea_state_heading_and_clearance():
+    env = make_env("sea_skimming", "volantex_ranger", num_envs=16, backend="torch", seed=4,
+                   sea_states=(0.0, 3.0))
+    td = env.reset()
+    task, sea = env.task, env.sim.sea
+    codes = task.sea_state
+    assert set(codes.tolist()) == {0.0, 3.0}
+    calm = codes == 0.0
+    assert float(sea.amplitude[calm].abs().max()) == 0.0 and float(sea.amplitude[~calm].max()) > 0.0
+    b = task.span
+    assert bool(((task.commanded_clearance >= 0.15 * b) & (task.commanded_clearance <= 0.5 * b)).all())
+    headings = task.heading_to_waves[:, None] - torch.tensor([0.0, torch.pi / 2, torch.pi])
+    assert bool((headings.abs().min(-1).values < 1e-6).all())
+    assert bool((td["task", "clearance"] > td["task", "commanded_clearance"] - 1e-4).all())
+    # Over its sea an env starts above the water under it, wherever the sea's mean level is.
+    assert bool((td["task", "clearance"] > 0).all())
+    # A partial reset draws only the reset rows' fields.
+    before = sea.phase.clone()
+    mask = torch.zeros(16, dtype=torch.bool)
+    mask[3] = True
+    td.set("_reset", mask[:, None])
+    env.reset(td)
+    assert torch.equal(sea.phase[~mask], before[~mask]) and not torch.equal(sea.phase[3], before[3])
+
+
+@needs_warp
+def test_the_task_step_agrees_on_both_engines():
+    outputs = {}
+    for backend in ("torch", "warp"):
+        env = make_env("sea_skimming", "airship_v7", num_envs=4, backend=backend, seed=2, sea_states=(3.0,))
+        td = env.reset()
+        action = env.trim_action().expand(4, -1).clone()
+        for _ in range(20):
+            td["action"] = action
+            td = env.step_mdp(env.step(td))
+        outputs[backend] = td
+    torch_td, warp_td = outputs["torch"], outputs["warp"]
+    assert torch.allclose(torch_td["observation"], warp_td["observation"], atol=5e-3)
+    assert torch.allclose(torch_td["task", "clearance"], warp_td["task", "clearance"], atol=5e-3)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_the_lqr_skims_a_slight_sea(backend):
+    env = make_env("sea_skimming", "airship_v7", num_envs=4, backend=backend, seed=1, sea_states=(2.0,),
+                   clearance_min=0.25, clearance_max=0.25, episode_seconds=12.0)
+    policy = task_spec("sea_skimming").controller("lqr")(env)
+    with torch.no_grad():
+        rollout = env.rollout(env.max_episode_steps, policy, break_when_any_done=False)
+    nxt = rollout["next"]
+    assert not bool(nxt["terminated"].any())
+    error = (nxt["task", "clearance_error"][:, -60:]).squeeze(-1)  # the last 3 s
+    assert float(error.pow(2).mean().sqrt()) < 0.1 * env.task.span
+    assert float(nxt["task", "lowest_tip_clearance"].min()) > 0.0
+
+
+def test_the_metrics_score_a_contact_and_the_power_saved():
+    n, t = 2, 10
+    done = torch.zeros(n, t, 1, dtype=torch.bool)
+    done[1, 4] = True
+    reason = torch.zeros(n, t, 1, dtype=torch.long)
+    reason[1, 4] = TERMINATION_CODE["water_contact"]
+    clearance = torch.full((n, t, 1), 1.2)
+    from tensordict import TensorDict
+
+    nxt = TensorDict({"done": done, "terminated": done.clone(), "termination_reason": reason,
+                      "task": {"clearance": clearance, "commanded_clearance": torch.ones(n, t, 1),
+                               "lowest_tip_clearance": torch.full((n, t, 1), 0.5)},
+                      "state": {"thrust": torch.full((n, t, 1), 8.0),
+                                "airspeed": torch.full((n, t, 1), 10.0)}},
+                     batch_size=[n, t])
+    metrics = sea_skimming_metrics(TensorDict({"next": nxt}, batch_size=[n, t]), span=2.0, dt=0.1,
+                                   free_power=100.0, grace_seconds=0.2)
+    assert metrics["water_contact"].tolist() == [False, True]
+    assert metrics["survival"].tolist() == [True, False]
+    assert torch.allclose(metrics["clearance_rmse_span"], torch.tensor([0.1, 0.1]))
+    assert torch.allclose(metrics["power_saved"], torch.tensor([0.2, 0.2]))
+
+
+def test_a_bad_sea_state_is_refused_in_one_line():
+    with pytest.raises(ValueError, match="sea_states must hold WMO sea-state codes 0-6"):
+        make_env("sea_skimming", "volantex_ranger", num_envs=1, backend="torch", seed=0, sea_states=(7.0,))
