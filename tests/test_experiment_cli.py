@@ -62,3 +62,18 @@ def test_every_study_at_a_tiny_scale(tmp_path: Path) -> None:
     for name, study in doc["studies"].items():
         assert study["finished"] == study["cells"], name
         assert study["figures"], name
+
+
+def test_sea_state_study_scores_each_sea_state(tmp_path: Path) -> None:
+    doc = run("sea-state", "--airframes", "airship_v7", "--controllers", "lqr", "--episodes", "2",
+              "--seconds", "6", "--out", str(tmp_path))
+    study = doc["studies"]["sea-state"]
+    assert study["finished"] == study["cells"] == 1
+    report = Path(study["report"]).read_text()
+    assert "| SS0 | SS1 | SS2 | SS3 | SS4 | SS5 |" in report and "| airship_v7 | lqr |" in report
+    results = json.loads(Path(study["results"]).read_text())
+    summary = results["cells"][0]["summary"]
+    assert summary["0/water_contact_rate"] == 0.0 and summary["0/survival"] == 1.0
+    assert summary["0/clearance_rmse_span"] < summary["3/clearance_rmse_span"]  # waves are harder to skim
+    assert 0.1 < summary["0/power_saved"] < 0.25  # the V7 saves ~16 % at 0.25 b (the trim table's 16.1 %)
+    assert [Path(f).name for f in study["figures"]] == ["sea_state.png"]

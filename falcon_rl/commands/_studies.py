@@ -19,7 +19,8 @@ from ._common import UsageError, comma_list, output_dir
 STUDY_FILES = ("report.md", "tables.tex", "results.json")
 #: The figures each study draws (``{airframe}``: one per airframe).
 STUDY_FIGURES = {"altitude": ("altitude.png",), "maneuvers": ("bank_{airframe}.png", "tracks.png"),
-                 "ground-effect": ("ground_effect.png",), "robustness": ("robustness.png",)}
+                 "ground-effect": ("ground_effect.png",), "robustness": ("robustness.png",),
+                 "sea-state": ("sea_state.png",)}
 #: Characters allowed for the name of a training metric's log file (``logs/<run>/scalars/<metric>.csv``).
 METRIC_NAME_ALLOWANCE = 32
 
@@ -34,9 +35,10 @@ def scale_of(args: argparse.Namespace) -> Any:
     if args.episodes is not None:
         n = args.episodes
         scale = replace(scale, learned_episodes=n, baseline_episodes=n, mppi_episodes=n, maneuver_episodes=n,
-                        mppi_maneuver_episodes=n, ge_episodes=n, robustness_episodes=n)
+                        mppi_maneuver_episodes=n, ge_episodes=n, robustness_episodes=n, sea_episodes=n)
     if args.seconds is not None:
-        scale = replace(scale, maneuver_seconds=args.seconds, robustness_seconds=args.seconds)
+        scale = replace(scale, maneuver_seconds=args.seconds, robustness_seconds=args.seconds,
+                        sea_seconds=args.seconds)
     return scale
 
 
@@ -189,4 +191,6 @@ def study_figures(study: str, cells: list, results: dict, folder: Path) -> list[
         written.append(figures.plot_ground_effect_study(shown, folder / names[0]))
     elif study == "robustness":
         written.append(figures.plot_robustness_study(shown, folder / names[0]))
+    elif study == "sea-state":
+        written.append(figures.plot_sea_state_study(shown, folder / names[0]))
     return [p for p in written if p is not None]

@@ -3,15 +3,18 @@
     falcon-rl experiment all --scale quick                     # the four studies, both airframes
     falcon-rl experiment altitude --controllers ppo,lqr --seeds 3 --scale paper
     falcon-rl experiment maneuvers --runner ray --ray-address auto
+    falcon-rl experiment sea-state --scale quick                # sea skimming over sea states 0-5
     falcon-rl experiment ablation --tasks altitude,attitude --airframe volantex_ranger \\
         --controllers lqr,ppo --episodes 20 --out runs/ablation
 
 The studies (altitude, maneuvers, ground-effect, robustness; ``all``) run as one sweep of cells, one
 per study x airframe x controller x training seed x MPPI draw, cached under ``--out``/cells: a killed
 sweep resumes where it stopped and a changed cell reruns alone (``falcon_rl.experiment``).
-Each study writes ``--out``/<study>/report.md, tables.tex (the paper's layout), results.json and its
-figures. ``--scale quick`` is a smoke run with shipped policies and one seed; ``paper`` the paper's
-sizes. Learned rows without a shipped policy are trained with ``--train`` and otherwise left empty.
+``sea-state`` (not in ``all``) flies the sea-skimming protocol at 0.25 b over sea states 0-5 per airframe
+and controller (the altimeter LQR; PPO where a policy exists). Each study writes ``--out``/<study>/report.md,
+tables.tex (the paper's layout), results.json and its figures. ``--scale quick`` is a smoke run with
+shipped policies and one seed; ``paper`` the paper's sizes. Learned rows without a shipped policy are
+trained with ``--train`` and otherwise left empty.
 
 ``ablation``:
 For each task and controller, the task's protocol on the full model and on one arm per phenomenon
@@ -44,16 +47,20 @@ from ._common import (
 )
 
 NAME = "experiment"
-HELP = "the paper's studies (altitude, maneuvers, ground-effect, robustness, all) and the physics ablation"
+HELP = ("the paper's studies (altitude, maneuvers, ground-effect, robustness, all), the sea-state study and "
+        "the physics ablation")
+#: The paper's four studies (``all``), then the studies of falcon-rl's own.
 STUDY_ACTIONS = ("altitude", "maneuvers", "ground-effect", "robustness")
-ACTIONS = (*STUDY_ACTIONS, "all", "ablation")
+OWN_STUDIES = ("sea-state",)
+ACTIONS = (*STUDY_ACTIONS, *OWN_STUDIES, "all", "ablation")
 #: The files ``experiment ablation`` writes under --out.
 ABLATION_FILES = ("ablation.png", "report.md", "results.json")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("action", choices=ACTIONS,
-                        help="a study, all four, or ablation (one phenomenon simplified at a time)")
+                        help="a study, all four of the paper, sea-state, or ablation (one phenomenon "
+                             "simplified at a time)")
     parser.add_argument("--airframes", default=None,
                         help="studies: comma list of airframes (default airship_v7,volantex_ranger)")
     parser.add_argument("--scale", choices=("quick", "paper"), default="quick",

@@ -30,18 +30,19 @@ from typing import Any
 from ..defaults import DEFAULT_BACKEND
 from ..envs.maneuvers import MANEUVERS
 from .cells import Cell, register_cell_function
+from .study_layouts import SEA_STATES
 
-STUDIES: tuple[str, ...] = ("altitude", "maneuvers", "ground-effect", "robustness")
+STUDIES: tuple[str, ...] = ("altitude", "maneuvers", "ground-effect", "robustness", "sea-state")
 LEARNED: tuple[str, ...] = ("ppo", "sac", "td3")
 #: Every controller a study can score.
 CONTROLLERS: tuple[str, ...] = (*LEARNED, "lqr", "mppi")
 #: The task each study flies.
 STUDY_TASK: dict[str, str] = {"altitude": "altitude", "maneuvers": "attitude", "ground-effect": "altitude",
-                              "robustness": "attitude"}
+                              "robustness": "attitude", "sea-state": "sea_skimming"}
 #: Controllers each study scores by default.
 STUDY_CONTROLLERS: dict[str, tuple[str, ...]] = {
     "altitude": ("ppo", "sac", "td3", "lqr", "mppi"), "maneuvers": ("ppo", "sac", "td3", "lqr", "mppi"),
-    "ground-effect": ("ppo", "lqr"), "robustness": ("ppo", "lqr")}
+    "ground-effect": ("ppo", "lqr"), "robustness": ("ppo", "lqr"), "sea-state": ("ppo", "lqr")}
 #: The paper's two reference airframes.
 AIRFRAMES: tuple[str, ...] = ("airship_v7", "volantex_ranger")
 
@@ -63,6 +64,9 @@ class Scale:
     robustness_episodes: int  # per grid cell and maneuver
     robustness_seconds: float  # each maneuver cut to this
     robustness_maneuvers: tuple[str, ...]  # the maneuvers every robustness cell flies
+    sea_episodes: int = 8  # per sea state
+    sea_seconds: float = 20.0  # episode length of the sea-state study
+    sea_states: tuple[int, ...] = SEA_STATES  # the WMO codes the sea-state study flies
 
 
 SCALES: dict[str, Scale] = {
@@ -73,7 +77,7 @@ SCALES: dict[str, Scale] = {
     "paper": Scale(learned_episodes=200, baseline_episodes=50, mppi_episodes=50, seeds=(0, 1, 2),
                    mppi_draws=5, maneuver_episodes=25, maneuver_seconds=None, mppi_maneuver_episodes=5,
                    ge_episodes=10, ge_seconds=30.0, robustness_episodes=32, robustness_seconds=30.0,
-                   robustness_maneuvers=MANEUVERS),
+                   robustness_maneuvers=MANEUVERS, sea_episodes=50, sea_seconds=30.0),
 }
 
 
@@ -112,6 +116,9 @@ def _study_params(study: str, controller: str, scale: Scale) -> dict[str, Any]:
         return {"episodes": episodes, "episode_seconds": scale.maneuver_seconds}
     if study == "ground-effect":
         return {"episodes": scale.ge_episodes, "episode_seconds": scale.ge_seconds}
+    if study == "sea-state":
+        return {"episodes": scale.sea_episodes, "episode_seconds": scale.sea_seconds,
+                "sea_states": scale.sea_states}
     return {"episodes": scale.robustness_episodes, "episode_seconds": scale.robustness_seconds,
             "maneuvers": scale.robustness_maneuvers}
 
@@ -326,6 +333,30 @@ def robustness_cell(cell: Cell) -> dict[str, Any]:
     return {"summary": summary, "rows": rows}
 
 
+def sea_state_cell(cell: Cell) -> dict[str, Any]:
+    """The sea-skimming protocol of one airframe and controller over each sea state of the cell (at 0.25 b):
+    per code (summary "<code>/<metric>") the water-contact rate, survival, clearance RMSE (spans and m), the
+    tip's closest approach (m) and the power saved against free flight; the rows whole."""
+    from ..evaluation.sea_skimming import sea_skimming_protocol
+
+    try:
+        source = policy_source(cell)
+    except NoPolicyError as error:
+        return _no_policy(error)
+    params = cell.param_dict
+    summary: dict[str, float] = {}
+    rows = []
+    for code in params["sea_states"]:
+        result = sea_skimming_protocol(cell.airframe, cell.controller.upper(), factory(cell, source),
+                                       episodes=int(params["episodes"]), seed=cell.seed + 1000 * cell.draw,
+                                       backend=params.get("backend", DEFAULT_BACKEND),
+                                       episode_seconds=float(params["episode_seconds"]), sea_state=int(code))
+        summary.update({f"{int(code)}/{key}": value for key, value in result.summary.items()})
+        rows.append({"sea_state": int(code), **result.summary})
+    return {"summary": summary, "rows": rows}
+
+
 for _study, _name in (("altitude", "altitude_cell"), ("maneuvers", "maneuvers_cell"),
-                      ("ground-effect", "ground_effect_cell"), ("robustness", "robustness_cell")):
+                      ("ground-effect", "ground_effect_cell"), ("robustness", "robustness_cell"),
+                      ("sea-state", "sea_state_cell")):
     register_cell_function(_study, f"{__name__}:{_name}")

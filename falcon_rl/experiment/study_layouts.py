@@ -11,6 +11,9 @@ from ..evaluation.robustness import FAMILIES
 from ..transforms.presets import GRID
 from .results import Column
 
+#: The sea states of the sea-state study's tables (its scales fly these).
+SEA_STATES: tuple[int, ...] = (0, 1, 2, 3, 4, 5)
+
 _TITLES = {"circle": "Circle", "figure8": "Fig.-8", "helix": "Helix", "s_turn": "S-turn"}
 
 
@@ -57,4 +60,11 @@ STUDY_TABLES: dict[str, tuple[StudyTable, ...]] = {
         tuple(Column(f"{family}/{level}/{metric}", level) for level in GRID))
         for family in FAMILIES
         for metric, title in (("survival", "survival"), ("bank_rmse_deg", "bank RMSE (deg)"))),
+    "sea-state": tuple(StudyTable(
+        name, f"Sea skimming at 0.25 b over sea states 0-5: {title}", ("airframe", "controller"),
+        ("Airframe", "Alg."), tuple(Column(f"{code}/{metric}", f"SS{code}", digits) for code in SEA_STATES))
+        for name, metric, title, digits in (
+            ("contacts", "water_contact_rate", "water-contact rate", 2),
+            ("rmse", "clearance_rmse_span", "clearance RMSE (spans, surviving episodes)", 3),
+            ("power", "power_saved", "power saved against free flight (fraction, surviving episodes)", 3))),
 }

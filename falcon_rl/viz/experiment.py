@@ -168,3 +168,30 @@ def plot_robustness_study(results: Results, path: str | Path) -> Path | None:
     axes[0, 0].legend(fontsize=7)
     fig.suptitle("Robustness of the attitude executor (true state)")
     return save_figure(fig, path)
+
+
+def plot_sea_state_study(results: Results, path: str | Path) -> Path | None:
+    """Water-contact rate, clearance RMSE (spans) and power saved against the sea state, one column per
+    airframe and one line per controller. None without rows."""
+    with_rows = {key: value for key, value in results.items() if value.get("rows")}
+    if not with_rows:
+        return None
+    airframes = list(dict.fromkeys(a for a, _ in with_rows))
+    metrics = (("water_contact_rate", "water-contact rate"), ("clearance_rmse_span", "clearance RMSE (b)"),
+               ("power_saved", "power saved"))
+    fig, axes = plt.subplots(len(metrics), len(airframes), figsize=(4.6 * len(airframes), 7.5), squeeze=False,
+                             sharex=True)
+    for (airframe, controller), result in with_rows.items():
+        rows = result["rows"]
+        codes = [r["sea_state"] for r in rows]
+        for row, (key, label) in enumerate(metrics):
+            ax = axes[row, airframes.index(airframe)]
+            values = [np.nan if r.get(key) is None else r[key] for r in rows]
+            ax.plot(codes, values, "o-", label=controller)
+            ax.set(ylabel=label, title=airframe if row == 0 else None)
+            ax.grid(alpha=0.3)
+    for ax in axes[-1]:
+        ax.set_xlabel("sea state (WMO code)")
+    axes[0, 0].legend(fontsize=8)
+    fig.suptitle("Sea skimming at 0.25 b clearance against the sea state")
+    return save_figure(fig, path)
