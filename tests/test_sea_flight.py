@@ -1,6 +1,7 @@
 """Flight over the sea: a calm sea is the flat ground exactly, the two batch engines agree over waves, the
 ground-effect slopes are the correlations' derivatives, a crest under the right tip rolls the aircraft left,
-the Warp sine-cosine is accurate and the water ends an episode as "water_contact"."""
+the Warp sine-cosine is accurate, the native sums over the components match torch (and compile for CUDA) and
+the water ends an episode as "water_contact"."""
 
 from __future__ import annotations
 
@@ -13,7 +14,8 @@ import warp as wp
 from falcon_rl.physics import Simulator
 from falcon_rl.physics._warp import init_warp, warp_available
 from falcon_rl.physics.ground_effect import influence_ratios, wing_constants
-from falcon_rl.physics.sea import sincos_wp
+from falcon_rl.physics.sea import SeaFieldWp
+from falcon_rl.physics.sea_native import sea_sums_wp
 
 needs_warp = pytest.mark.skipif(not warp_available(), reason="warp-lang is not installed")
 HEIGHTS = torch.tensor([3.0, 5.0, 8.0, 20.0])
@@ -75,22 +77,35 @@ def test_a_crest_under_the_right_tip_rolls_the_aircraft_left():
     assert float(crest) < float(sim.state["aero_moment_body"][0, 0]) - 1.0
 
 
-@wp.kernel(module="unique")
-def sincos_kernel(x: wp.array(dtype=wp.float32), out: wp.array2d(dtype=wp.float32)):
-    i = wp.tid()
-    sc = sincos_wp(x[i])
-    out[i, 0] = sc[0]
-    out[i, 1] = sc[1]
-
-
 @needs_warp
-def test_the_warp_sine_cosine_is_accurate():
+@pytest.mark.parametrize("lanes", [8, 1])
+def test_the_native_sine_cosine_is_accurate(lanes):
+    """One unit component per env at phase x = north (the others zero): the root's elevation sum is cos x and
+    its north slope -sin x, in the 8-lane blocks (8 components) and in the scalar tail (1)."""
     init_warp()
-    x = torch.linspace(-3000.0, 3000.0, 200_001)
-    out = torch.zeros(x.shape[0], 2)
-    wp.launch(sincos_kernel, dim=x.shape[0], inputs=[wp.from_torch(x), wp.from_torch(out)], device="cpu")
-    exact = torch.stack([torch.sin(x.double()), torch.cos(x.double())], -1)
-    assert float((out.double() - exact).abs().max()) < 2e-6
+    x = torch.linspace(-3000.0, 3000.0, 20_001)
+    n = x.shape[0]
+    field = {name: torch.zeros(n, lanes) for name in ("amplitude", "wavenumber", "frequency", "direction_cos",
+                                                      "direction_sin", "phase")}
+    field["amplitude"][:, 0] = 1.0
+    field["wavenumber"][:, 0] = 1.0
+    field["direction_cos"][:, 0] = 1.0
+    views = SeaFieldWp()
+    for name, tensor in field.items():
+        setattr(views, name, wp.from_torch(tensor))
+    out = torch.zeros(n, 14)
+    wp.launch(unit_sums_kernel, dim=n, inputs=[views, wp.from_torch(x), wp.from_torch(out)], device="cpu")
+    exact = torch.stack([torch.cos(x.double()), -torch.sin(x.double())], -1)
+    assert float((out[:, [2, 5]].double() - exact).abs().max()) < 2e-6
+
+
+@wp.kernel(module="unique")
+def unit_sums_kernel(sea: SeaFieldWp, x: wp.array(dtype=wp.float32), out: wp.array2d(dtype=wp.float32)):
+    i = wp.tid()
+    sums = sea_sums_wp(sea.amplitude, sea.wavenumber, sea.frequency, sea.direction_cos, sea.direction_sin,
+                       sea.phase, i, x[i], 0.0, 0.0, 0.0, 0.0, 100.0, 0.1)
+    for m in range(14):
+        out[i, m] = sums[m]
 
 
 @pytest.mark.parametrize("backend", ["torch", pytest.param("warp", marks=needs_warp)])
@@ -104,3 +119,34 @@ def test_the_water_stops_a_diving_aircraft(backend):
     assert bool(state["crashed"].all()) and bool(state["water_contact"].all())
     assert not bool(state["ground_contact"].any())
     assert float(state["velocity_body"].abs().max()) == 0.0  # stopped on the water, not under the ground
+
+
+@needs_warp
+@pytest.mark.parametrize("components", [64, 67])
+def test_the_native_sums_match_the_torch_sample(components):
+    """The native sampler's 8-lane blocks (and, at 67 components, its scalar tail) give the torch sample."""
+    samples = []
+    for backend in ("torch", "warp"):
+        sim = Simulator("navion", 4, backend=backend, seed=3, sea=4, sea_components=components)
+        sim.reset({"height": HEIGHTS, "euler": torch.tensor([[0.3, 0.05, 1.1]]).expand(4, 3),
+                   "position_ned": torch.tensor([[120.0, -45.0, 0.0]]).expand(4, 3)})
+        samples.append(sim.surface.clone())
+    assert torch.allclose(samples[0], samples[1], atol=2e-4, rtol=1e-4)
+    assert float(samples[0][:, 0].abs().max()) > 0.05  # a real sea under them
+
+
+@wp.kernel(module="unique")
+def native_sums_kernel(sea: SeaFieldWp, out: wp.array2d(dtype=wp.float32)):
+    i = wp.tid()
+    sums = sea_sums_wp(sea.amplitude, sea.wavenumber, sea.frequency, sea.direction_cos, sea.direction_sin,
+                       sea.phase, i, 10.0, 3.0, 0.5, 0.2, 1.0, 1.0, 0.1)
+    for m in range(14):
+        out[i, m] = sums[m]
+
+
+@needs_warp
+def test_the_native_sums_compile_for_cuda():
+    """The snippet's CUDA path (one lane) compiles for sm_90 on any machine (NVRTC ships with Warp)."""
+    init_warp()
+    paths = wp.compile_aot_module(native_sums_kernel.module, arch=90)
+    assert paths and paths[0].stat().st_size > 0

@@ -36,8 +36,8 @@ each (so a field does not repeat after 2 pi / dw), and each component's directio
 its inverse distribution: the record at a point then has variance sum a_k^2 / 2 = m0 and
 Hs = 4 sqrt(m0), and its spectrum is S. eta is positive up, from the mean water level, in the NED
 frame's horizontal coordinates (north n, east e, m); ``SeaSurface`` evaluates eta, d(eta)/dt and the
-potential-flow orbital velocity of the water surface, decaying with height h above it as exp(-k h).
-The Warp twins (``sea_elevation_wp``, ``sea_elevation_rate_wp``, ``sea_orbital_velocity_wp``) evaluate
+air's potential flow over the waves, decaying with height h above them as exp(-k h).
+The Warp twins (``sea_elevation_wp``, ``sea_elevation_rate_wp``, ``sea_air_velocity_wp``) evaluate
 the same sums for one env over :class:`SeaFieldWp`, zero-copy views of a float32 ``SeaSurface``
 (:func:`sea_field_views`).
 """
@@ -251,32 +251,6 @@ def sample_sea(sea: SeaState, num_envs: int, generator: torch.Generator, compone
 
 
 # ---------------------------------------------------------------------------------------- warp twins
-#: pi / 2 in three parts (Cody-Waite): n (pi / 2) is subtracted exactly for |n| < 2^11.
-HALF_PI_PARTS = (1.5703125, 4.837512969970703125e-4, 7.54978995489188216e-8)
-
-
-@warp_func
-def sincos_wp(x: float) -> wp.vec2:
-    """(sin x, cos x) in float32 for the wave sums, ~3x cheaper than ``wp.sin`` and ``wp.cos`` on a CPU:
-    x = n pi/2 + r by Cody-Waite reduction (three parts of pi/2), |r| <= pi/4, then the Taylor polynomials
-    of sin r (to r^9) and cos r (to r^8), whose truncation errors are below 2e-9 and 3e-8, and the quadrant
-    n mod 4 (chosen by arithmetic, without branches). Against the float64 sine and cosine of the same
-    float32 x: within 2e-6 for |x| < 3,000 rad
-    (1e-5 to 1e4 rad: the reduction's rounding grows with n). A wave's phase reaches 3,000 rad at
-    ~1 km from the field's origin for its shortest components."""
-    quadrant = int(x * 0.6366197723675814 + wp.where(x >= 0.0, 0.5, -0.5))  # round to nearest
-    n = float(quadrant)
-    r = ((x - n * 1.5703125) - n * 4.837512969970703125e-4) - n * 7.54978995489188216e-8
-    r2 = r * r
-    sine = r + r * r2 * (-0.16666666666666666 + r2 * (0.008333333333333333 + r2 * (
-        -0.0001984126984126984 + r2 * 2.755731922398589e-06)))
-    cosine = 1.0 + r2 * (-0.5 + r2 * (0.041666666666666664 + r2 * (-0.001388888888888889
-                                                                   + r2 * 2.48015873015873e-05)))
-    odd = float(quadrant & 1)  # branch-free quadrant: random phases would mispredict every branch
-    sign = 1.0 - 2.0 * float((quadrant >> 1) & 1)
-    return wp.vec2(sign * (sine + odd * (cosine - sine)), sign * (cosine - odd * (sine + cosine)))
-
-
 @warp_struct
 class SeaFieldWp:
     """A ``SeaSurface``'s [N, K] float32 tensors as Warp arrays (zero-copy views)."""
@@ -364,6 +338,5 @@ __all__ = [
     "sea_elevation_wp",
     "sea_field_views",
     "sea_state_height",
-    "sincos_wp",
     "spreading_directions",
 ]
