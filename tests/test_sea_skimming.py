@@ -1,5 +1,5 @@
 """The sea-skimming task: specs, Gymnasium, the per-episode sea, torch-warp parity of the task's step,
-the LQR over a slight sea on both backends, and the protocol's scoring."""
+the LQR over a slight sea and MPPI over a moderate one on both backends, and the protocol's scoring."""
 
 from __future__ import annotations
 
@@ -10,7 +10,8 @@ from gymnasium.utils.env_checker import check_env
 from torchrl.envs.utils import check_env_specs
 
 import falcon_rl  # noqa: F401 (registers the Gymnasium ids)
-from falcon_rl import make_env
+from falcon_rl import Simulator, make_env
+from falcon_rl.baselines.mppi import MPPIConfig
 from falcon_rl.envs.tasks import TERMINATION_CODE, task_spec
 from falcon_rl.evaluation.sea_skimming import sea_skimming_metrics
 
@@ -112,3 +113,29 @@ def test_the_metrics_score_a_contact_and_the_power_saved():
 def test_a_bad_sea_state_is_refused_in_one_line():
     with pytest.raises(ValueError, match="sea_states must hold WMO sea-state codes 0-6"):
         make_env("sea_skimming", "volantex_ranger", num_envs=1, backend="torch", seed=0, sea_states=(7.0,))
+
+
+def test_a_planner_flies_the_envs_own_waves():
+    """``Simulator.set_sea_field`` gives a simulator another's wave fields (here each row twice), sampled at
+    once; a field of the wrong shape is refused in one line."""
+    source = Simulator("airship_v7", 2, backend="torch", seed=0, sea=3)
+    planner = Simulator("airship_v7", 4, backend="torch", seed=1)
+    sea = source.sea
+    planner.set_sea_field(type(sea)(**{k: v.repeat_interleave(2, dim=0) for k, v in vars(sea).items()}))
+    assert torch.equal(planner.sea.phase[::2], sea.phase) and torch.equal(planner.sea.phase[1::2], sea.phase)
+    assert torch.allclose(planner.surface[::2], source.surface, atol=1e-6)
+    with pytest.raises(ValueError, match=r"a sea field's amplitude must be \[4, 64\]"):
+        planner.set_sea_field(sea)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_mppi_skims_the_waves_it_plans_over(backend):
+    env = make_env("sea_skimming", "airship_v7", num_envs=2, backend=backend, seed=5, sea_states=(3.0,),
+                   clearance_min=0.25, clearance_max=0.25, episode_seconds=4.0)
+    policy = task_spec("sea_skimming").controller("mppi")(env, MPPIConfig(samples=32, horizon_seconds=2.0))
+    with torch.no_grad():
+        rollout = env.rollout(env.max_episode_steps, policy, break_when_any_done=False)
+    assert not bool(rollout["next", "terminated"].any())
+    assert torch.equal(policy.planner.sea.phase[::32], env.sim.sea.phase)
+    error = rollout["next", "task", "clearance_error"][:, -20:]
+    assert float(error.pow(2).mean().sqrt()) < 0.1 * env.task.span

@@ -51,6 +51,7 @@ from ..envs.layout import flat_scalars
 from ..envs.tasks import task_spec
 from ..physics import Simulator
 from ..physics import state as S
+from ..physics.surface import CLEARANCE, TIP_CLEARANCE
 
 
 @dataclass
@@ -88,6 +89,10 @@ class MPPIConfig:
     penalty: float = 1e3
     #: RK4 substeps keep |lambda| dt of the fastest cruise mode below this (2.79 is RK4's limit).
     stability_margin: float = 2.0
+    #: Sea skimming: error of the altimeter's clearance to the command, m, and the lower wing tip's margin
+    #: above the water below which a rollout pays ``penalty`` per metre, as a fraction of the span.
+    clearance_scale: float = 0.1
+    tip_margin: float = 0.05
     #: Seed of the sampling noise; None: the env's seed (each evaluation seed, or experiment draw, then
     #: samples its own noise: the spread over draws measures how repeatable the planner is).
     seed: int | None = None
@@ -98,6 +103,7 @@ class MPPIConfig:
 TRACKED_KEYS: dict[str, tuple[str, ...]] = {
     "altitude": ("target_altitude", "reference_altitude", "reference_climb_rate"),
     "attitude": ("bank_command", "climb_rate_command", "airspeed_command"),
+    "clearance": ("commanded_clearance", "clearance"),
 }
 
 
@@ -134,9 +140,15 @@ class MPPI(TensorDictModuleBase):
             raise ValueError(f"hold_fraction must be a number in [0, 1), got {cfg.hold_fraction!r}")
         backend = env.config.backend  # the planner's rollouts on the env's own backend
         self.substeps = stable_substeps(env.sim.airframe, cfg.plan_dt, cfg.stability_margin)
+        sea = env.sim.sea
         self.planner = Simulator(env.sim.airframe, self.n * self.k, backend=backend, device=env.device,
                                  dt=cfg.plan_dt / self.substeps, ground_effect=env.config.ground_effect,
-                                 dtype=env.sim.dtype, check_inputs=False, stop_at_ground=False)
+                                 dtype=env.sim.dtype, check_inputs=False, stop_at_ground=False,
+                                 sea_components=64 if sea is None else sea.amplitude.shape[1])
+        #: The env's simulator: a planner over the sea flies each env's own waves, from its clock on.
+        self.sim = env.sim
+        self.tip_margin = cfg.tip_margin * float(env.sim.airframe.geometry.span)
+        self._sea_phase: torch.Tensor | None = None  # the phases of the env's sea the planner flies
         self.trim_command = task.trim.command.clone()  # [4]
         self.trim_airspeed = task.trim_airspeed
         self.stall_speed = float(env.sim.airframe.envelope.stall_speed)
@@ -171,7 +183,8 @@ class MPPI(TensorDictModuleBase):
         return S.StateLayout(self.planner.airframe.num_motors).pack(td["state"])
 
     def _step_cost(self, x: torch.Tensor, ref: dict[str, torch.Tensor]) -> torch.Tensor:
-        """Cost [N*K] of planner states x [N*K, S] against one planning step's references (each [N*K])."""
+        """Cost [N*K] of planner states x [N*K, S] against one planning step's references (each [N*K]); over
+        the sea the clearances are the planner's surface samples."""
         cfg = self.config
         w, qx, qy, qz = x[:, S.QUATERNION].unbind(-1)
         u, v, wb = x[:, S.VELOCITY].unbind(-1)
@@ -183,8 +196,16 @@ class MPPI(TensorDictModuleBase):
         cost = ((airspeed - ref["airspeed"]) / cfg.airspeed_scale) ** 2
         cost = cost + (x[:, S.ANGULAR_RATE][:, S.PITCH] / cfg.pitch_rate_scale) ** 2
         cost = cost + ((climb - ref["climb"]) / cfg.climb_rate_scale) ** 2
+        floor = (1.0 - height).clamp_min(0.0)
         if self.tracks == "altitude":
             cost = cost + ((height - ref["height"]) / cfg.altitude_scale) ** 2
+        elif self.tracks == "clearance":
+            surface = self.planner.surface
+            clearance = surface[:, CLEARANCE]
+            cost = cost + ((clearance - ref["clearance"]) / cfg.clearance_scale) ** 2
+            roll = torch.atan2(2 * (w * qx + qy * qz), 1 - 2 * (qx * qx + qy * qy))
+            cost = cost + (roll / cfg.bank_scale) ** 2
+            floor = (self.tip_margin - surface[:, TIP_CLEARANCE]).clamp_min(0.0) + (-clearance).clamp_min(0.0)
         else:
             if "height" in ref:
                 cost = cost + ((height - ref["height"]) / cfg.profile_height_scale) ** 2
@@ -193,7 +214,7 @@ class MPPI(TensorDictModuleBase):
             sideslip = torch.asin((v / airspeed.clamp_min(1e-3)).clamp(-1.0, 1.0))
             cost = cost + (sideslip / cfg.sideslip_scale) ** 2
         unsafe = ((alpha.abs() - self.alpha_limit).clamp_min(0.0) * 10.0
-                  + (1.2 * self.stall_speed - airspeed).clamp_min(0.0) + (1.0 - height).clamp_min(0.0))
+                  + (1.2 * self.stall_speed - airspeed).clamp_min(0.0) + floor)
         return cost + cfg.penalty * unsafe
 
     def _references(self, td: TensorDictBase) -> dict[str, torch.Tensor]:
@@ -202,7 +223,11 @@ class MPPI(TensorDictModuleBase):
         td = flat_scalars(td)
         tau = self.config.plan_dt * torch.arange(1, self.horizon + 1, device=self.plan.device,
                                                  dtype=self.plan.dtype)[:, None]  # [H, 1]
-        if self.tracks == "altitude":
+        if self.tracks == "clearance":
+            commanded = td["task", "commanded_clearance"].expand(self.horizon, self.n)
+            ref = {"clearance": commanded, "climb": torch.zeros_like(commanded),
+                   "airspeed": torch.full_like(commanded, self.trim_airspeed)}
+        elif self.tracks == "altitude":
             target, rate = td["task", "target_altitude"], td["task", "reference_climb_rate"]
             gap = target - td["task", "reference_altitude"]
             remaining = (gap.abs() - rate.abs() * tau).clamp_min(0.0)  # [H, N]
@@ -232,6 +257,8 @@ class MPPI(TensorDictModuleBase):
                             dim=1)[:, :h]
         candidates = self._candidates(shifted)  # [N, K, H, A]
         self.planner.x.copy_(self._initial_state(td).repeat_interleave(k, dim=0))
+        if self.tracks == "clearance":
+            self._copy_sea()
         command = self.trim_command.expand(n * k, S.NUM_CONTROLS).clone()
         ref = self._references(td)
         cost = torch.zeros(n * k, device=self.plan.device, dtype=self.plan.dtype)
@@ -250,6 +277,17 @@ class MPPI(TensorDictModuleBase):
         self.plan = torch.where(rows[:, None, None], new_plan, self.plan)
         self.planning_seconds.append(time.perf_counter() - t0)
         self.planning_cpu_seconds.append(time.process_time() - c0)
+
+    def _copy_sea(self) -> None:
+        """The planner's envs fly their env's waves from the env's clock (each row repeated K times): the
+        fields are copied on the first replan and whenever an env's sea was drawn anew (a new episode)."""
+        sea, planner = self.sim.sea, self.planner
+        if sea is not None and (self._sea_phase is None or not torch.equal(self._sea_phase, sea.phase)):
+            planner.set_sea_field(type(sea)(**{name: tensor.repeat_interleave(self.k, dim=0)
+                                               for name, tensor in vars(sea).items()}))
+            self._sea_phase = sea.phase.clone()
+        planner.time.copy_(self.sim.time.repeat_interleave(self.k))
+        planner.sample_surface()
 
     def _candidates(self, shifted: torch.Tensor) -> torch.Tensor:
         """The K sampled control sequences [N, K, H, A] around the shifted plan ``shifted`` [N, H, A],
@@ -343,6 +381,12 @@ def altitude_mppi(env: FixedWingEnv, config: MPPIConfig | None = None) -> MPPI:
 #: 0.94 / 0.97 deg (0.95-1.01) and the V7's from 0.85 / 0.85 to 0.82 / 0.79 deg; airspeed RMSE 0.16-0.26 m/s.
 ATTITUDE_MPPI = {"samples": 64, "bank_scale": math.radians(1.2), "airspeed_scale": 0.5,
                  "hold_fraction": 0.0625}
+
+
+def sea_skimming_mppi(env: FixedWingEnv, config: MPPIConfig | None = None) -> MPPI:
+    """MPPI holding the commanded clearance over the waves of ``env``'s task, each planner env flying its
+    env's own sea (the defaults without ``config``)."""
+    return MPPI(env, config or MPPIConfig(), tracks="clearance")
 
 
 def attitude_mppi(env: FixedWingEnv, config: MPPIConfig | None = None) -> MPPI:

@@ -35,7 +35,8 @@ def scale_of(args: argparse.Namespace) -> Any:
     if args.episodes is not None:
         n = args.episodes
         scale = replace(scale, learned_episodes=n, baseline_episodes=n, mppi_episodes=n, maneuver_episodes=n,
-                        mppi_maneuver_episodes=n, ge_episodes=n, robustness_episodes=n, sea_episodes=n)
+                        mppi_maneuver_episodes=n, ge_episodes=n, robustness_episodes=n, sea_episodes=n,
+                        sea_mppi_episodes=n)
     if args.seconds is not None:
         scale = replace(scale, maneuver_seconds=args.seconds, robustness_seconds=args.seconds,
                         sea_seconds=args.seconds)

@@ -42,7 +42,7 @@ STUDY_TASK: dict[str, str] = {"altitude": "altitude", "maneuvers": "attitude", "
 #: Controllers each study scores by default.
 STUDY_CONTROLLERS: dict[str, tuple[str, ...]] = {
     "altitude": ("ppo", "sac", "td3", "lqr", "mppi"), "maneuvers": ("ppo", "sac", "td3", "lqr", "mppi"),
-    "ground-effect": ("ppo", "lqr"), "robustness": ("ppo", "lqr"), "sea-state": ("ppo", "lqr")}
+    "ground-effect": ("ppo", "lqr"), "robustness": ("ppo", "lqr"), "sea-state": ("ppo", "lqr", "mppi")}
 #: The paper's two reference airframes.
 AIRFRAMES: tuple[str, ...] = ("airship_v7", "volantex_ranger")
 
@@ -65,6 +65,7 @@ class Scale:
     robustness_seconds: float  # each maneuver cut to this
     robustness_maneuvers: tuple[str, ...]  # the maneuvers every robustness cell flies
     sea_episodes: int = 8  # per sea state
+    sea_mppi_episodes: int = 4  # per sea state, of one MPPI draw
     sea_seconds: float = 20.0  # episode length of the sea-state study
     sea_states: tuple[int, ...] = SEA_STATES  # the WMO codes the sea-state study flies
 
@@ -77,7 +78,8 @@ SCALES: dict[str, Scale] = {
     "paper": Scale(learned_episodes=200, baseline_episodes=50, mppi_episodes=50, seeds=(0, 1, 2),
                    mppi_draws=5, maneuver_episodes=25, maneuver_seconds=None, mppi_maneuver_episodes=5,
                    ge_episodes=10, ge_seconds=30.0, robustness_episodes=32, robustness_seconds=30.0,
-                   robustness_maneuvers=MANEUVERS, sea_episodes=50, sea_seconds=30.0),
+                   robustness_maneuvers=MANEUVERS, sea_episodes=50, sea_mppi_episodes=20,
+                   sea_seconds=30.0),
 }
 
 
@@ -117,7 +119,8 @@ def _study_params(study: str, controller: str, scale: Scale) -> dict[str, Any]:
     if study == "ground-effect":
         return {"episodes": scale.ge_episodes, "episode_seconds": scale.ge_seconds}
     if study == "sea-state":
-        return {"episodes": scale.sea_episodes, "episode_seconds": scale.sea_seconds,
+        episodes = scale.sea_mppi_episodes if controller == "mppi" else scale.sea_episodes
+        return {"episodes": episodes, "episode_seconds": scale.sea_seconds,
                 "sea_states": scale.sea_states}
     return {"episodes": scale.robustness_episodes, "episode_seconds": scale.robustness_seconds,
             "maneuvers": scale.robustness_maneuvers}

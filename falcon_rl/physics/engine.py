@@ -189,11 +189,19 @@ class Engine(ABC):
         from ``generator``: the same draws whatever the mask) into the rows of ``mask`` [N] bool (all when
         None) and sample their surface; the other rows keep theirs. The rows' ``sea_surface`` switch is
         the caller's (``Simulator.set_sea``)."""
-        drawn = sample_sea(sea, self.num_envs, generator, self.setup.sea_components, self.setup.device,
-                           self.setup.dtype)
-        field = self.ensure_sea()
-        for name, tensor in vars(drawn).items():
-            target = getattr(field, name)
+        self.copy_sea(sample_sea(sea, self.num_envs, generator, self.setup.sea_components, self.setup.device,
+                                 self.setup.dtype), mask)
+
+    def copy_sea(self, field: SeaSurface, mask: torch.Tensor | None = None) -> None:
+        """Copy the wave fields ``field`` ([N, K] each, K = :attr:`EngineSetup.sea_components`) into the rows
+        of ``mask`` [N] bool (all when None) and sample their surface; the other rows keep theirs."""
+        target_field = self.ensure_sea()
+        for name, tensor in vars(field).items():
+            target = getattr(target_field, name)
+            if tuple(tensor.shape) != tuple(target.shape):
+                raise ValueError(f"a sea field's {name} must be {list(target.shape)}, got "
+                                 f"{list(tensor.shape)}")
+            tensor = tensor.to(target)
             if mask is None:
                 target.copy_(tensor)
             else:

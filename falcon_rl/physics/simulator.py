@@ -240,6 +240,21 @@ class Simulator:
         self.set_model(mask, surface="sea")
         self.engine.draw_sea(state, self.generator, mask)
 
+    def set_sea_field(self, field: SeaSurface, mask: torch.Tensor | None = None) -> None:
+        """Fly the envs of ``mask`` [N] bool (all when None) over the given wave fields (``field``, [N, K]
+        each, K this simulator's ``sea_components``; e.g. another simulator's rows, for a planner), their
+        surface sampled at once. Other envs keep theirs."""
+        if mask is not None:
+            mask = torch.as_tensor(mask, device=self.device).reshape(self.num_envs).bool()
+        self.set_model(mask, surface="sea")
+        self.engine.copy_sea(field, mask)
+
+    def sample_surface(self, mask: torch.Tensor | None = None) -> None:
+        """Sample the surface under the envs of ``mask`` [N] bool (all when None) at their current state and
+        clock into :attr:`surface`: for a host that wrote :attr:`x` or :attr:`time` itself (a reset and a
+        step sample it already)."""
+        self.engine.sample_surface(mask)
+
     @property
     def sea(self) -> SeaSurface | None:
         """The envs' wave fields (``SeaSurface``, [N, K] each; rows of envs over the ground unused), or None
