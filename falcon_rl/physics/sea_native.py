@@ -37,13 +37,40 @@ _SNIPPET = r"""
     const float* DC = (const float*)((const char*)direction_cos.data + (size_t)i * direction_cos.strides[0]);
     const float* DS = (const float*)((const char*)direction_sin.data + (size_t)i * direction_sin.strides[0]);
     const float* PH = (const float*)((const char*)phase.data + (size_t)i * phase.strides[0]);
+    // One component's (or 8 components') terms added into sums[14]: float or vector arithmetic alike.
+    auto accumulate = [&](auto a, auto kn, auto w, auto dc, auto ds, auto ph, auto sincos, auto exp,
+                          auto* sums) {
+        decltype(a) sa, ca, sb, cb;
+        sincos(kn * (north * dc + east * ds) - w * time + ph, sa, ca);
+        sincos(kn * (quarter_north * dc + quarter_east * ds), sb, cb);
+        const auto c2b = 2.0f * cb * cb - 1.0f;
+        const auto s2b = 2.0f * sb * cb;
+        const auto spread = (1.0f + 2.0f * cb + c2b) * 0.25f;
+        const auto odd = (sb + s2b) * inv8b;
+        sums[0] += a * ca * spread;
+        sums[1] -= a * sa * odd;
+        sums[2] += a * ca;
+        const auto ak = -a * kn;
+        const auto s0 = ak * sa * spread, s1 = ak * ca * odd, s2 = ak * sa;
+        sums[3] += s0 * dc;
+        sums[4] += s1 * dc;
+        sums[5] += s2 * dc;
+        sums[6] += s0 * ds;
+        sums[7] += s1 * ds;
+        sums[8] += s2 * ds;
+        sums[9] += a * (ca * c2b - sa * s2b);
+        sums[10] += a * (ca * c2b + sa * s2b);
+        const auto flow = a * w * exp(-kn * height);
+        sums[11] -= flow * ca * dc;
+        sums[12] -= flow * ca * ds;
+        sums[13] += flow * sa;
+    };
     float acc[14];
     for (int m = 0; m < 14; ++m)
         acc[m] = 0.0f;
     int start = 0;
 #if !defined(__CUDA_ARCH__)
-    // 8 components at a time in the compiler's vector types (no headers, no intrinsics): the same
-    // arithmetic as the scalar lambdas below, lane by lane.
+    // 8 components at a time in the compiler's vector types (no headers, no intrinsics).
     typedef float v8f __attribute__((vector_size(32)));
     typedef int v8i __attribute__((vector_size(32)));
     typedef float v8f_unaligned __attribute__((vector_size(32), aligned(4)));
@@ -63,7 +90,7 @@ _SNIPPET = r"""
         s = sign * (sine + odd * (cosine - sine));
         c = sign * (cosine - odd * (sine + cosine));
     };
-    auto decay8 = [](v8f x) {  // exp(x) for x <= 0
+    auto exp8 = [](v8f x) {  // exp(x) for x <= 0
         const v8f low = __builtin_convertvector(-(x < -87.0f), v8f);  // 1 where x < -87
         x = x + (-87.0f - x) * low;
         const v8i n = __builtin_convertvector(x * 1.4426950408889634f - 0.5f, v8i);
@@ -76,39 +103,14 @@ _SNIPPET = r"""
     v8f lanes[14];
     for (int m = 0; m < 14; ++m)
         lanes[m] = (v8f){0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f};
-    for (; start + 8 <= count; start += 8) {
-        const v8f a = load8(A + start), kn = load8(KN + start), w = load8(W + start);
-        const v8f dc = load8(DC + start), ds = load8(DS + start);
-        v8f sa, ca, sb, cb;
-        sincos8(kn * (north * dc + east * ds) - w * time + load8(PH + start), sa, ca);
-        sincos8(kn * (quarter_north * dc + quarter_east * ds), sb, cb);
-        const v8f c2b = 2.0f * cb * cb - 1.0f;
-        const v8f s2b = 2.0f * sb * cb;
-        const v8f spread = (1.0f + 2.0f * cb + c2b) * 0.25f;
-        const v8f odd = (sb + s2b) * inv8b;
-        lanes[0] += a * ca * spread;
-        lanes[1] -= a * sa * odd;
-        lanes[2] += a * ca;
-        const v8f ak = -a * kn;
-        const v8f s0 = ak * sa * spread, s1 = ak * ca * odd, s2 = ak * sa;
-        lanes[3] += s0 * dc;
-        lanes[4] += s1 * dc;
-        lanes[5] += s2 * dc;
-        lanes[6] += s0 * ds;
-        lanes[7] += s1 * ds;
-        lanes[8] += s2 * ds;
-        lanes[9] += a * (ca * c2b - sa * s2b);
-        lanes[10] += a * (ca * c2b + sa * s2b);
-        const v8f flow = a * w * decay8(-kn * height);
-        lanes[11] -= flow * ca * dc;
-        lanes[12] -= flow * ca * ds;
-        lanes[13] += flow * sa;
-    }
+    for (; start + 8 <= count; start += 8)
+        accumulate(load8(A + start), load8(KN + start), load8(W + start), load8(DC + start),
+                   load8(DS + start), load8(PH + start), sincos8, exp8, lanes);
     for (int m = 0; m < 14; ++m)
         for (int j = 0; j < 8; ++j)
             acc[m] += lanes[m][j];
 #endif
-    auto sincos = [](float x, float& s, float& c) {
+    auto sincos1 = [](float x, float& s, float& c) {
         const int q = (int)(x * 0.6366197723675814f + (x >= 0.0f ? 0.5f : -0.5f));
         const float n = (float)q;
         const float r = ((x - n * 1.5703125f) - n * 4.837512969970703125e-4f) - n * 7.54978995489188216e-8f;
@@ -122,33 +124,9 @@ _SNIPPET = r"""
         s = sign * (sine + odd * (cosine - sine));
         c = sign * (cosine - odd * (sine + cosine));
     };
-    for (int k = start; k < count; ++k) {  // CUDA: every component; CPU: the last count % 8
-        const float a = A[k], kn = KN[k], w = W[k], dc = DC[k], ds = DS[k];
-        float sa, ca, sb, cb;
-        sincos(kn * (north * dc + east * ds) - w * time + PH[k], sa, ca);
-        sincos(kn * (quarter_north * dc + quarter_east * ds), sb, cb);
-        const float c2b = 2.0f * cb * cb - 1.0f;
-        const float s2b = 2.0f * sb * cb;
-        const float spread = (1.0f + 2.0f * cb + c2b) * 0.25f;
-        const float odd = (sb + s2b) * inv8b;
-        acc[0] += a * ca * spread;
-        acc[1] -= a * sa * odd;
-        acc[2] += a * ca;
-        const float ak = -a * kn;
-        const float s0 = ak * sa * spread, s1 = ak * ca * odd, s2 = ak * sa;
-        acc[3] += s0 * dc;
-        acc[4] += s1 * dc;
-        acc[5] += s2 * dc;
-        acc[6] += s0 * ds;
-        acc[7] += s1 * ds;
-        acc[8] += s2 * ds;
-        acc[9] += a * (ca * c2b - sa * s2b);
-        acc[10] += a * (ca * c2b + sa * s2b);
-        const float flow = a * w * expf(-kn * (height < 0.0f ? 0.0f : height));
-        acc[11] -= flow * ca * dc;
-        acc[12] -= flow * ca * ds;
-        acc[13] += flow * sa;
-    }
+    auto exp1 = [](float x) { return expf(x); };
+    for (int k = start; k < count; ++k)  // CUDA: every component; CPU: the last count % 8
+        accumulate(A[k], KN[k], W[k], DC[k], DS[k], PH[k], sincos1, exp1, acc);
     wp::vec_t<14, wp::float32> out;
     for (int m = 0; m < 14; ++m)
         out.c[m] = acc[m];
