@@ -10,6 +10,7 @@ from tensordict.nn import TensorDictModuleBase
 from torchrl.envs.utils import check_env_specs
 
 from falcon_rl import list_airframes, load_airframe, make_env
+from falcon_rl.defaults import DEFAULT_AIRFRAME
 from falcon_rl.envs.tasks import task_names, task_spec
 
 #: 20 Hz control (the shipped recipes' rate) keeps 10 s at 200 env steps.
@@ -42,10 +43,18 @@ def _cases() -> list:
         imported = load_airframe(airframe).provenance.get("imported_from") is not None
         for task in task_names():
             for backend in ("torch", "warp"):
-                marks = [pytest.mark.slow] if imported and backend == "torch" else []
+                slow = backend == "torch" and (imported or slow_at_sea(airframe, task))
+                marks = [pytest.mark.slow] if slow else []
                 cases.append(pytest.param(airframe, task, backend, marks=marks,
                                           id=f"{airframe}-{task}-{backend}"))
     return cases
+
+
+def slow_at_sea(airframe: str, task: str) -> bool:
+    """Sea skimming in eager torch (a sea sample per sub-step, ~20 s a case with the LQR's ground-effect
+    design): the default airframe's runs by default, the others' are slow (tests/test_sea_skimming.py
+    has the backends' parity and the LQR over a sea on both)."""
+    return task == "sea_skimming" and airframe != DEFAULT_AIRFRAME
 
 
 @pytest.mark.parametrize(("airframe", "task", "backend"), _cases())

@@ -166,12 +166,12 @@ def altitude_schedule(airframe: Airframe, dt: float, ground_effect: bool | str =
 
 
 def attitude_schedule(airframe: Airframe, dt: float, height: float = 100.0,
-                      heights: tuple[float, ...] | None = None, ground_effect: bool | str = False
-                      ) -> GainSchedule:
+                      heights: tuple[float, ...] | None = None, ground_effect: bool | str = False,
+                      speed_fractions: tuple[float, ...] = (0.8, 0.9, 1.0, 1.1, 1.2)) -> GainSchedule:
     """Full-state LQRI (bank, climb rate, airspeed) at ``height`` (or on the grid ``heights``, m, with
-    ``ground_effect``) x airspeeds 0.8..1.2 cruise."""
+    ``ground_effect``) x airspeeds ``speed_fractions`` of cruise (those that trim at every height)."""
     grid = list(heights or (height,))
-    speeds = _trimmable_speeds(airframe, (0.8, 0.9, 1.0, 1.1, 1.2), *grid, ground_effect=ground_effect)
+    speeds = _trimmable_speeds(airframe, speed_fractions, *grid, ground_effect=ground_effect)
     return _grid(airframe, grid, speeds, True, ground_effect, dt)
 
 

@@ -1,7 +1,8 @@
 """The sea-skimming LQR: an altimeter loop over the attitude LQRI, scheduled in ground effect.
 
 The attitude LQRI (``lqr.AttitudeLQR``: bank, climb rate and airspeed, with integrators) is designed on a
-grid of clearances (0.15, 0.25, 0.5, 1, 2) b in ground effect and scheduled at the measured clearance c.
+grid of clearances (0.15, 0.25, 0.5, 1, 2) b in ground effect x airspeeds (0.9, 1, 1.1) cruise and scheduled
+at the measured clearance c.
 Above it, the altimeter loop commands
 
     bank* = 0,   V_a* = the task's trim airspeed,
@@ -27,8 +28,10 @@ from .lqr import AttitudeLQR, attitude_schedule
 if TYPE_CHECKING:
     from ..envs import FixedWingEnv
 
-#: Clearances (spans) of the ground-effect gain schedule.
+#: Clearances (spans) and airspeeds (fractions of cruise) of the ground-effect gain schedule: the task holds
+#: the trim airspeed, so three airspeeds span what it flies.
 SCHEDULE_CLEARANCES: tuple[float, ...] = (0.15, 0.25, 0.5, 1.0, 2.0)
+SCHEDULE_SPEEDS: tuple[float, ...] = (0.9, 1.0, 1.1)
 
 
 class SeaSkimmingLQR(AttitudeLQR):
@@ -41,7 +44,8 @@ class SeaSkimmingLQR(AttitudeLQR):
                  airspeed: float | None = None, time_constant: float = 1.0):
         span = airframe.geometry.span
         heights = tuple(round(f * span, 4) for f in SCHEDULE_CLEARANCES)
-        schedule = attitude_schedule(airframe, dt, heights=heights, ground_effect=ground_effect)
+        schedule = attitude_schedule(airframe, dt, heights=heights, ground_effect=ground_effect,
+                                     speed_fractions=SCHEDULE_SPEEDS)
         super().__init__(airframe, dt, device, dtype, schedule=schedule)
         self.airspeed = float(airspeed or airframe.envelope.cruise_speed)
         self.time_constant = float(time_constant)
@@ -66,4 +70,4 @@ class SeaSkimmingLQR(AttitudeLQR):
         return td
 
 
-__all__ = ["SCHEDULE_CLEARANCES", "SeaSkimmingLQR"]
+__all__ = ["SCHEDULE_CLEARANCES", "SCHEDULE_SPEEDS", "SeaSkimmingLQR"]
