@@ -180,7 +180,7 @@ def _bad_initial(kind: str) -> object:
     ("tiny_quaternion", "quaternion has norm"),
     ("huge_velocity", "speed above"),
     ("huge_rate", "body rate above"),
-    ("underground", "below the ground"),
+    ("underground", "height below the surface"),
     ("far_away", "position beyond"),
     ("inf_velocity", "NaN or Inf"),
     ("command_out_of_range", r"outside \[-1, 1\]"),

@@ -210,7 +210,7 @@ def test_shipped_policies_load(stem):
     policy, meta = read_policy(path)
     action = policy(torch.zeros(3, policy.mlp[0].in_features))
     assert action.shape == (3, policy.act_dim) and torch.isfinite(action).all()
-    assert meta["task"] == stem.split("_")[1]
+    assert stem.split("_", 1)[1].startswith(f"{meta['task']}_")  # <algorithm>_<task>_<airframe>[_seedK]
 
 
 def test_legacy_checkpoint_resumes(trained: Path, tmp_path: Path, capsys):
