@@ -3,6 +3,8 @@ the LQR over a slight sea and MPPI over a moderate one on both backends, and the
 
 from __future__ import annotations
 
+import json
+
 import gymnasium
 import pytest
 import torch
@@ -142,3 +144,15 @@ def test_mppi_skims_the_waves_it_plans_over(backend):
     assert torch.equal(policy.planner.sea.phase[::32], env.sim.sea.phase)
     error = rollout["next", "task", "clearance_error"][:, -20:]
     assert float(error.pow(2).mean().sqrt()) < 0.1 * env.task.span
+
+
+def test_eval_flies_the_sea_state_and_clearance_asked(tmp_path, capsys):
+    """``falcon-rl eval --sea-state --clearance`` reach the protocol, whose results say what it flew."""
+    from falcon_rl.cli import main
+
+    code = main(["eval", "--task", "sea_skimming", "--controller", "lqr", "--airframe", "airship_v7",
+                 "--episodes", "2", "--seconds", "2", "--sea-state", "1", "--clearance", "0.3", "--backend",
+                 "warp", "--out", str(tmp_path), "--json"])
+    assert code == 0
+    settings = json.loads((tmp_path / "results.json").read_text())[0]["settings"]
+    assert settings["sea_state"] == 1 and settings["clearance"] == 0.3

@@ -71,6 +71,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--episodes", type=positive_int, default=20, help="episodes (attitude: per maneuver)")
     parser.add_argument("--maneuvers", default=None,
                         help=f"comma list of {','.join(MANEUVERS)} (protocols that fly maneuvers: attitude)")
+    parser.add_argument("--sea-state", type=int, choices=range(7), default=None, metavar="{0..6}",
+                        help="WMO sea state the protocol flies over (protocols over the sea: sea_skimming; "
+                             "default its own, 3)")
+    parser.add_argument("--clearance", type=float, default=None,
+                        help="commanded clearance in spans (sea_skimming; default 0.25)")
     add_flight_arguments(parser, "episode length, s (default: the protocol's; attitude: cuts each maneuver)",
                          None, "folder for report.md, results.json and the figure (default: a new folder per "
                          f"run, {RUNS_FOLDER}/TASK-CONTROLLER-AIRFRAME-UTCTIME); one that already holds a "
@@ -79,17 +84,29 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _protocol_options(args: argparse.Namespace, protocol) -> dict:
-    """Options of the protocol call beyond the common ones: --maneuvers where the protocol takes it."""
+    """Options of the protocol call beyond the common ones, where the protocol takes them: --maneuvers,
+    --sea-state and --clearance (UsageError naming the flag otherwise)."""
     import inspect
+    import math
 
     from ..envs.maneuvers import MANEUVERS
 
-    if args.maneuvers is None:
-        return {}
-    if "maneuvers" not in inspect.signature(protocol).parameters:
-        raise UsageError(f"--maneuvers does not apply to the {args.task} protocol")
-    maneuvers = comma_list(args.maneuvers, "--maneuvers", tuple(MANEUVERS))
-    return {"maneuvers": tuple(maneuvers)}
+    parameters = inspect.signature(protocol).parameters
+    options: dict = {}
+    for flag, name, value in (("--maneuvers", "maneuvers", args.maneuvers),
+                              ("--sea-state", "sea_state", args.sea_state),
+                              ("--clearance", "clearance", args.clearance)):
+        if value is None:
+            continue
+        if name not in parameters:
+            raise UsageError(f"{flag} does not apply to the {args.task} protocol")
+        options[name] = value
+    if "maneuvers" in options:
+        options["maneuvers"] = tuple(comma_list(args.maneuvers, "--maneuvers", tuple(MANEUVERS)))
+    clearance = options.get("clearance")
+    if clearance is not None and not (math.isfinite(clearance) and 0.0 < clearance <= 2.0):
+        raise UsageError(f"--clearance must be a number of spans in (0, 2], got {clearance!r}")
+    return options
 
 
 def run(args: argparse.Namespace) -> int:
