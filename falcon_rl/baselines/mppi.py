@@ -282,12 +282,13 @@ class MPPI(TensorDictModuleBase):
         """The planner's envs fly their env's waves from the env's clock (each row repeated K times): the
         fields are copied on the first replan and whenever an env's sea was drawn anew (a new episode)."""
         sea, planner = self.sim.sea, self.planner
+        planner.time.copy_(self.sim.time.repeat_interleave(self.k))
         if sea is not None and (self._sea_phase is None or not torch.equal(self._sea_phase, sea.phase)):
             planner.set_sea_field(type(sea)(**{name: tensor.repeat_interleave(self.k, dim=0)
-                                               for name, tensor in vars(sea).items()}))
+                                               for name, tensor in vars(sea).items()}))  # samples too
             self._sea_phase = sea.phase.clone()
-        planner.time.copy_(self.sim.time.repeat_interleave(self.k))
-        planner.sample_surface()
+        else:
+            planner.sample_surface()
 
     def _candidates(self, shifted: torch.Tensor) -> torch.Tensor:
         """The K sampled control sequences [N, K, H, A] around the shifted plan ``shifted`` [N, H, A],

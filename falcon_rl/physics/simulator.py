@@ -219,12 +219,18 @@ class Simulator:
         """Set the named model switches (fields of ``ModelSwitches``, e.g. ``actuators="ideal"``) in
         the envs where ``mask`` [N] bool is True (all when None); the others keep theirs. Takes
         effect from the next step (the actuator states of newly ideal envs jump to the command then)."""
+        mask = self._switch(mask, switches)
+        if "surface" in switches:
+            self.engine.sample_surface(mask)
+
+    def _switch(self, mask: torch.Tensor | None, switches: dict[str, Any]) -> torch.Tensor:
+        """Write the switches' parameter rows where ``mask`` [N] bool is True (all when None), sampling
+        nothing; the mask as a [N] bool tensor."""
         flags = switch_flags(switches, switches)
         mask = torch.ones(self.num_envs, dtype=torch.bool, device=self.device) if mask is None else (
             torch.as_tensor(mask, device=self.device).reshape(self.num_envs).bool())
         self.params.assign(mask, **{name: torch.tensor(value) for name, value in flags.items()})
-        if "surface" in switches:
-            self.engine.sample_surface(mask)
+        return mask
 
     def set_sea(self, sea: int | SeaState | None, mask: torch.Tensor | None = None) -> None:
         """Fly the envs of ``mask`` [N] bool (all when None) over a new wave field of ``sea`` (a sea-state
@@ -237,8 +243,8 @@ class Simulator:
             self.set_model(mask, surface="flat")
             return
         state = sea if isinstance(sea, SeaState) else SeaState.from_code(sea)
-        self.set_model(mask, surface="sea")
-        self.engine.draw_sea(state, self.generator, mask)
+        self._switch(mask, {"surface": "sea"})
+        self.engine.draw_sea(state, self.generator, mask)  # samples the rows' surface once
 
     def set_sea_field(self, field: SeaSurface, mask: torch.Tensor | None = None) -> None:
         """Fly the envs of ``mask`` [N] bool (all when None) over the given wave fields (``field``, [N, K]
@@ -246,8 +252,8 @@ class Simulator:
         surface sampled at once. Other envs keep theirs."""
         if mask is not None:
             mask = torch.as_tensor(mask, device=self.device).reshape(self.num_envs).bool()
-        self.set_model(mask, surface="sea")
-        self.engine.copy_sea(field, mask)
+        self._switch(mask, {"surface": "sea"})
+        self.engine.copy_sea(field, mask)  # samples the rows' surface once
 
     def sample_surface(self, mask: torch.Tensor | None = None) -> None:
         """Sample the surface under the envs of ``mask`` [N] bool (all when None) at their current state and

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from ..physics.surface import OVER_WATER
-from ..recording import SEA_COMPONENTS, quaternion_euler
+from ..recording import quaternion_euler, sea_snapshot
 from .scene import FrameRenderer
 from .sea import SeaField
 
@@ -21,15 +21,15 @@ from .sea import SeaField
 def simulator_sea(sim: Any, rows: list[int] | np.ndarray) -> list[tuple[SeaField, float] | None]:
     """Per row of ``rows`` (env indices of the simulator ``sim``): its wave field and clock (s) when it flies
     over its sea (``sim.sea``, ``sim.surface``), else None."""
-    sea = getattr(sim, "sea", None)
-    if sea is None:
+    rows = list(rows)
+    over_water = sim.surface[:, OVER_WATER]
+    fields = sea_snapshot(getattr(sim, "sea", None), over_water, rows)  # [6, E, K] of these rows only
+    if fields is None:
         return [None] * len(rows)
-    water = sim.surface[:, OVER_WATER].detach().cpu().numpy() != 0
-    if not water[rows].any():
-        return [None] * len(rows)
-    fields = np.stack([getattr(sea, name).detach().cpu().numpy() for name in SEA_COMPONENTS])  # [6, N, K]
-    clock = sim.time.detach().cpu().numpy()
-    return [(SeaField.from_components(fields[:, e]), float(clock[e])) if water[e] else None for e in rows]
+    water = over_water[rows].detach().cpu().numpy() != 0
+    clock = sim.time[rows].detach().cpu().numpy()
+    return [(SeaField.from_components(fields[:, j]), float(clock[j])) if water[j] else None
+            for j in range(len(rows))]
 
 
 class FlightView:
