@@ -113,8 +113,9 @@ def test_eval_flies_on_the_torch_threads_it_is_given(capsys, tmp_path):
     ("argv", "needle"),
     [
         (["--task", "path_following", "--controller", "lqr"],
-         "controller 'lqr' does not apply to task 'path_following'; its controllers: ['trim']"),
-        (["--task", "trajectory", "--controller", "mppi"], "its controllers: ['trim']"),
+         "controller 'lqr' does not apply to task 'path_following'; its controllers: ['guided-l1-lqr', "
+         "'guided-l1-ppo', 'guided-lqr', 'guided-ppo', 'trim']"),
+        (["--task", "trajectory", "--controller", "mppi"], "'guided-ppo', 'trim']"),
         (["--task", "altitude", "--controller", "trim", "--maneuvers", "circle"],
          "--maneuvers does not apply to the altitude protocol"),
         (["--task", "attitude", "--controller", "trim", "--maneuvers", "loop"],

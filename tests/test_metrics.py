@@ -194,9 +194,14 @@ def test_trajectory_metrics_split_the_position_error() -> None:
     # reference at the origin; after the 1 s intercept the errors are (3, 4, 0), (0, 0, -2), (3, 4, 0) m
     position = torch.tensor([[[0.0, 0.0, 12.0], [3.0, 4.0, 0.0], [0.0, 0.0, -2.0], [3.0, 4.0, 0.0]]])
     terminated = torch.tensor([[False, False, False, True]])
-    rollout = _synthetic(1, 4, 0.5, {"position_ned": position}, {"reference_position": torch.zeros(1, 4, 3)},
-                         terminated)
+    # the reference flies north at 10 m/s on a right turn of 100 m (centre 100 m east of it)
+    velocity = torch.tensor([10.0, 0.0, 0.0]).expand(1, 4, 3)
+    rollout = _synthetic(1, 4, 0.5, {"position_ned": position},
+                         {"reference_position": torch.zeros(1, 4, 3), "reference_velocity": velocity,
+                          "reference_curvature": torch.full((1, 4, 1), 0.01)}, terminated)
     m = trajectory_metrics(rollout, tolerance=4.5, intercept_seconds=1.0)
+    off_arc = 100.0 - math.hypot(3.0, 96.0)
+    assert m["cross_track_rmse_m"].item() == pytest.approx(math.sqrt(2 * off_arc**2 / 3), abs=1e-4)
     assert m["position_rmse_m"].item() == pytest.approx(math.sqrt((25 + 4 + 25) / 3), abs=1e-5)
     assert m["horizontal_rmse_m"].item() == pytest.approx(math.sqrt(50 / 3), abs=1e-5)
     assert m["vertical_rmse_m"].item() == pytest.approx(math.sqrt(4 / 3), abs=1e-5)

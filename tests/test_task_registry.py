@@ -136,7 +136,9 @@ def test_shipped_tasks_are_registered_with_everything() -> None:
         for controller in spec.controllers:
             assert callable(spec.controller(controller))
     assert set(task_spec("climb_descend").controllers) == {"lqr", "mppi", "trim"}
-    assert set(task_spec("path_following").controllers) == {"trim"}
+    guided = {"guided-lqr", "guided-l1-lqr", "guided-ppo", "guided-l1-ppo"}
+    for name in ("path_following", "trajectory"):
+        assert set(task_spec(name).controllers) == {"trim", *guided}
 
 
 def test_toy_task_is_reached_from_its_name(toy_task, tmp_path, capsys) -> None:
@@ -231,7 +233,8 @@ def test_every_protocol_runs_with_trim(task: str) -> None:
 def test_controllers_that_do_not_apply_name_the_ones_that_do() -> None:
     env = make_env("path_following", "volantex_ranger", num_envs=1)
     for name in ("lqr", "mppi"):
-        with pytest.raises(ValueError, match=r"does not apply to task 'path_following'.*\['trim'\]"):
+        with pytest.raises(ValueError, match=r"does not apply to task 'path_following'.*\['guided-l1-lqr', "
+                                             r"'guided-l1-ppo', 'guided-lqr', 'guided-ppo', 'trim'\]"):
             make_controller(name, env)
     from falcon_rl.baselines.lqr import AltitudeLQR
     from falcon_rl.baselines.mppi import MPPI, MPPIConfig

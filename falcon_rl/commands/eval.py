@@ -62,6 +62,7 @@ def controllers_help() -> str:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     from ..envs.maneuvers import MANEUVERS
     from ..envs.tasks import task_names
+    from ..physics.wind import SEVERITY_W20_KT
 
     parser.add_argument("--controller", required=True, help=controllers_help())
     parser.add_argument("--task", choices=task_names(), default="altitude")
@@ -76,6 +77,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "default its own, 3)")
     parser.add_argument("--clearance", type=float, default=None,
                         help="commanded clearance in spans (sea_skimming; default 0.25)")
+    parser.add_argument("--turbulence", choices=tuple(SEVERITY_W20_KT), default=None,
+                        help="Dryden turbulence the episodes fly in (MIL severity; default: the protocol's, "
+                             "none)")
     add_flight_arguments(parser, "episode length, s (default: the protocol's; attitude: cuts each maneuver)",
                          None, "folder for report.md, results.json and the figure (default: a new folder per "
                          f"run, {RUNS_FOLDER}/TASK-CONTROLLER-AIRFRAME-UTCTIME); one that already holds a "
@@ -85,7 +89,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _protocol_options(args: argparse.Namespace, protocol) -> dict:
     """Options of the protocol call beyond the common ones, where the protocol takes them: --maneuvers,
-    --sea-state and --clearance (UsageError naming the flag otherwise)."""
+    --sea-state, --clearance and --turbulence (UsageError naming the flag otherwise)."""
     import inspect
     import math
 
@@ -101,6 +105,11 @@ def _protocol_options(args: argparse.Namespace, protocol) -> dict:
         if name not in parameters:
             raise UsageError(f"{flag} does not apply to the {args.task} protocol")
         options[name] = value
+    if args.turbulence is not None:
+        takes_options = any(p.kind is inspect.Parameter.VAR_KEYWORD for p in parameters.values())
+        if not (takes_options or "turbulence" in parameters):
+            raise UsageError(f"--turbulence does not apply to the {args.task} protocol")
+        options["turbulence"] = args.turbulence
     if "maneuvers" in options:
         options["maneuvers"] = tuple(comma_list(args.maneuvers, "--maneuvers", tuple(MANEUVERS)))
     clearance = options.get("clearance")

@@ -28,6 +28,9 @@ Trajectory: e_p = p - p_ref (NED); W as above.
 
     position_rmse_m      RMSE of |e_p| over W
     horizontal_rmse_m    RMSE of |(e_n, e_e)| over W;   vertical_rmse_m   RMSE of e_d over W
+    cross_track_rmse_m   RMSE over W of the horizontal distance to the reference's arc, | |p - c| - R |
+                         (c = p_ref + n / kappa, n the unit normal right of v_ref, kappa the published
+                         reference_curvature, R = 1 / |kappa|): the path error, along-track lag aside
     time_in_band         fraction of W with |e_p| <= ``tolerance``
 """
 
@@ -112,6 +115,20 @@ def path_following_metrics(rollout: TensorDictBase, band: float = 5.0, intercept
     }
 
 
+def arc_distance(nxt: TensorDictBase) -> torch.Tensor:
+    """[N, T] the horizontal distance (m) of the aircraft from the trajectory reference's arc (the module
+    docstring's cross-track error), from the flat "next" entries of a rollout."""
+    reference = nxt["task", "reference_position"][..., :2]
+    velocity = nxt["task", "reference_velocity"][..., :2]
+    curvature = nxt["task", "reference_curvature"]
+    tangent = velocity / torch.linalg.vector_norm(velocity, dim=-1, keepdim=True).clamp_min(1e-6)
+    right = torch.stack([-tangent[..., 1], tangent[..., 0]], dim=-1)
+    radius = 1.0 / curvature.abs().clamp_min(1e-9)
+    center = reference + (torch.sign(curvature) * radius).unsqueeze(-1) * right
+    distance = torch.linalg.vector_norm(nxt["state", "position_ned"][..., :2] - center, dim=-1)
+    return (distance - radius).abs()
+
+
 def trajectory_metrics(rollout: TensorDictBase, tolerance: float = 10.0, intercept_seconds: float = 10.0
                        ) -> dict[str, torch.Tensor]:
     """Per-episode metrics [N] of a 3D trajectory rollout (see the module docstring)."""
@@ -126,8 +143,9 @@ def trajectory_metrics(rollout: TensorDictBase, tolerance: float = 10.0, interce
         "position_rmse_m": rmse(distance, window),
         "horizontal_rmse_m": rmse(torch.linalg.vector_norm(error[..., :2], dim=-1), window),
         "vertical_rmse_m": rmse(error[..., 2], window),
+        "cross_track_rmse_m": rmse(arc_distance(nxt), window),
         "time_in_band": time_in_band(distance, tolerance, window),
     }
 
 
-__all__ = ["climb_descend_metrics", "path_following_metrics", "trajectory_metrics"]
+__all__ = ["arc_distance", "climb_descend_metrics", "path_following_metrics", "trajectory_metrics"]

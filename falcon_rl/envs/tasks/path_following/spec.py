@@ -13,6 +13,9 @@ SPEC = register_task(TaskSpec(
     metrics=(Metric("survival", "Surv."), Metric("completion", "Compl."),
              Metric("cross_track_rmse_m", "e_y RMSE", "m"), Metric("capture_time_s", "t_capture", "s"),
              Metric("course_rmse_deg", "course RMSE", "deg"), Metric("altitude_rmse_m", "h RMSE", "m")),
-    controllers={"trim": TRIM_HOLD},
+    controllers={"guided-lqr": "falcon_rl.baselines.guided:guided_lqr",
+                 "guided-l1-lqr": "falcon_rl.baselines.guided:guided_l1_lqr",
+                 "guided-ppo": "falcon_rl.baselines.guided:guided_ppo",
+                 "guided-l1-ppo": "falcon_rl.baselines.guided:guided_l1_ppo", "trim": TRIM_HOLD},
     figure="falcon_rl.viz.tracking:plot_path_following",
 ))

@@ -21,7 +21,8 @@ sigma_V = ``airspeed_scale`` x cruise. Action [delta_e, delta_a, delta_r, delta_
         - w_E ((V_safe - V_a)/V_safe)^2 [V_a < V_safe] - w_s ||a_t - a_{t-1}||^2
 
 Termination: ground contact, stall, or |e_p| > ``lost_distance``. Published: position_error
-(|e_p|), position_error_ned [3], reference_position [3], reference_velocity [3].
+(|e_p|), position_error_ned [3], reference_position [3], reference_velocity [3] and reference_curvature
+s / R (1/m, the horizontal path's; positive turning right), what a path-following guidance reads.
 
 The step, the start of episodes and the observation are written once, as Warp functions
 (``trajectory.kernels``); every engine runs them.
@@ -128,5 +129,5 @@ class TrajectoryTask(Task):
     def info(self) -> dict[str, torch.Tensor]:
         info = {"position_error": torch.linalg.vector_norm(self.position_error, dim=-1),
                 "position_error_ned": self.position_error_ned, "reference_position": self.reference_position,
-                "reference_velocity": self.reference_velocity}
+                "reference_velocity": self.reference_velocity, "reference_curvature": self.turn / self.radius}
         return {key: value.to(self.dtype, copy=True) for key, value in info.items()}
