@@ -78,6 +78,44 @@ def test_the_task_step_agrees_on_both_engines():
     assert torch.allclose(torch_td["task", "clearance"], warp_td["task", "clearance"], atol=5e-3)
 
 
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_the_forward_looking_altimeter_reads_the_water_ahead(backend):
+    """Observations 15.. are (h - eta(p + V_g tau, t) - c*)/(b/4) over the env's own waves: computed here
+    from the sea's torch twin; a look-ahead of ~0 reads what the altimeter under the CG reads."""
+    taus = (1e-4, 0.5, 1.0)
+    env = make_env("sea_skimming", "airship_v7", num_envs=6, backend=backend, seed=5, sea_states=(3.0,),
+                   preview_seconds=taus)
+    td = env.reset()
+    action = env.trim_action().expand(6, -1).clone()
+    for _ in range(5):
+        td["action"] = action
+        td = env.step_mdp(env.step(td))
+    sim, task = env.sim, env.task
+    position, velocity = sim.state["position_ned"].float(), sim.state["velocity_ned"].float()
+    tau = torch.tensor(taus)
+    ahead = position[:, :2, None] + velocity[:, :2, None] * tau  # [N, 2, P]
+    water = sim.sea.elevation(ahead[:, 0], ahead[:, 1], sim.time.float())
+    commanded = task.commanded_clearance[:, None]
+    expected = ((-position[:, 2:3] - water - commanded) / (0.25 * task.span)).clamp(-5, 5)
+    assert td["observation"].shape == (6, 18)
+    assert torch.allclose(td["observation"][:, 15:], expected, atol=1e-3)
+    assert torch.allclose(td["observation"][:, 15], td["observation"][:, 0], atol=1e-3)
+    assert float((expected[:, 2] - expected[:, 0]).abs().max()) > 0.05  # the water ahead is not the same
+
+
+def test_without_look_ahead_the_observation_is_the_fifteen_values():
+    env = make_env("sea_skimming", "volantex_ranger", num_envs=2, backend="torch", seed=0, preview_seconds=())
+    assert env.reset()["observation"].shape == (2, 15)
+
+
+@pytest.mark.parametrize("preview", [(0.0,), (-1.0,), (6.0,), tuple(0.1 * k for k in range(1, 10))])
+def test_a_bad_look_ahead_is_refused_in_one_line(preview):
+    with pytest.raises(ValueError, match=r"preview_seconds must hold at most 8 look-ahead times in "
+                                         r"\(0, 5\] s"):
+        make_env("sea_skimming", "volantex_ranger", num_envs=1, backend="torch", seed=0,
+                 preview_seconds=preview)
+
+
 @pytest.mark.parametrize("backend", FLIGHT_BACKENDS)
 def test_the_lqr_skims_a_slight_sea(backend):
     env = make_env("sea_skimming", "airship_v7", num_envs=4, backend=backend, seed=1, sea_states=(2.0,),

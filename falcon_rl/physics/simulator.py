@@ -261,6 +261,11 @@ class Simulator:
         step sample it already)."""
         self.engine.sample_surface(mask)
 
+    def ensure_sea(self) -> SeaSurface:
+        """The envs' wave fields, allocated calm (zero amplitudes, nothing drawn) when none exist yet; the
+        tensors stay in place from then on (for a reader that binds them before the first sea is drawn)."""
+        return self.engine.ensure_sea()
+
     @property
     def sea(self) -> SeaSurface | None:
         """The envs' wave fields (``SeaSurface``, [N, K] each; rows of envs over the ground unused), or None

@@ -51,9 +51,10 @@ if TYPE_CHECKING:
 
 #: Why an episode terminated: "termination_reason" holds the index (0: not terminated). Checked in
 #: this order, the first that applies is published ("water_contact", an env over its sea touching the
-#: water, is checked where "ground_contact" is: an env has one surface or the other).
+#: water, is checked where "ground_contact" is: an env has one surface or the other). The landing task
+#: ends on "touchdown" (its wheels on the surface, the goal) or "tip_strike" (a wing tip first).
 TERMINATION_REASONS: tuple[str, ...] = ("none", "ground_contact", "alpha_stall", "speed_stall", "lost",
-                                        "non_finite", "water_contact")
+                                        "non_finite", "water_contact", "touchdown", "tip_strike")
 #: Index of each reason in :data:`TERMINATION_REASONS`.
 TERMINATION_CODE: dict[str, int] = {name: code for code, name in enumerate(TERMINATION_REASONS)}
 
@@ -116,6 +117,8 @@ class TaskConfig:
     positive: ClassVar[tuple[str, ...]] = ("episode_seconds", "stall_alpha_factor", "trim_airspeed")
     non_negative: ClassVar[tuple[str, ...]] = ()
     ordered: ClassVar[tuple[tuple[str, str], ...]] = ()
+    #: Tuple fields that may be empty (every other tuple of numbers needs at least one).
+    may_be_empty: ClassVar[tuple[str, ...]] = ()
 
     def check(self, task: str) -> None:
         """Raise ValueError (one line: task, option, constraint, value) on a value the task cannot run."""
@@ -126,7 +129,8 @@ class TaskConfig:
                 continue
             many = kind.startswith("tuple")
             numbers = value if many and isinstance(value, (tuple, list)) else (value,)
-            if not numbers or not all(_is_number(v) and math.isfinite(v) for v in numbers):
+            empty_ok = many and f.name in self.may_be_empty
+            if (not numbers and not empty_ok) or not all(_is_number(v) and math.isfinite(v) for v in numbers):
                 what = "a non-empty tuple of finite numbers" if many else "a finite number"
                 raise ValueError(f"{task} option {f.name} must be {what}, got {value!r}")
         if not 0.0 <= self.initial_airspeed_spread <= 0.5:

@@ -224,12 +224,23 @@ class FusedStep:
         self._inputs: list[Any] = []
         self._key: tuple[int, ...] = ()
         self._shadows: list[tuple[torch.Tensor, torch.Tensor]] = []
+        self.task_tensors: tuple[torch.Tensor, ...] = ()
+
+    #: How many of :meth:`_simulator_tensors` make the :class:`SimulatorViews` (the rest are the task's own,
+    #: :meth:`task_simulator_tensors`).
+    _VIEW_TENSORS: ClassVar[int] = 8
 
     def _simulator_tensors(self) -> tuple[torch.Tensor, ...]:
         sim = self.task.sim
         p = sim.params
         return (sim.x, sim.wind_ned, sim.gust_velocity_body, p.span, p.wing_quarter_chord, p.surface_min,
-                p.surface_max, sim.surface)
+                p.surface_max, sim.surface, *self.task_simulator_tensors())
+
+    def task_simulator_tensors(self) -> tuple[torch.Tensor, ...]:
+        """Simulator tensors beyond :class:`SimulatorViews` that the task's buffers read (e.g. the clock
+        and the wave fields): bound, re-bound when they move and shadowed in float32 like the views'; a
+        subclass reads their float32 versions from :attr:`task_tensors` in :meth:`task_inputs`."""
+        return ()
 
     def _kernel_tensors(self) -> tuple[torch.Tensor, ...]:
         """The simulator tensors the kernels read, in float32: the tensors themselves, or, for a float64
@@ -265,7 +276,10 @@ class FusedStep:
 
     def bind(self) -> None:
         """Bind zero-copy views of the simulator's and the task's tensors and record the launches."""
-        views = simulator_views(*self._kernel_tensors())
+        tensors = self._kernel_tensors()
+        views = simulator_views(*tensors[:self._VIEW_TENSORS])
+        #: float32 versions of :meth:`task_simulator_tensors` (the tensors, or their shadows)
+        self.task_tensors = tensors[self._VIEW_TENSORS:]
         outputs = [wp.from_torch(self.observation), wp.from_torch(self.reward), warp_view(self.reason)]
         task_inputs = self.task_inputs()
         self._inputs = [views, *task_inputs, *outputs]

@@ -12,12 +12,15 @@ altimeter.
 from __future__ import annotations
 
 import math
+from dataclasses import fields
 from typing import TYPE_CHECKING, Any
 
+import torch
 import warp as wp
 
 from ....constants import DEG
 from ....physics._warp import forward_only
+from ....physics.sea import SeaFieldWp, SeaSurface, sea_elevation_wp, sea_field_views
 from ....physics.task_kernels import (
     FlightState,
     SimulatorViews,
@@ -63,6 +66,9 @@ class SeaSkimmingBuffers:
     reference_altitude: wp.array(dtype=wp.float32)
     previous_action: wp.array(dtype=wp.vec4)
     action: wp.array(dtype=wp.vec4)
+    sim_time: wp.array(dtype=wp.float32)  # [N] the simulator's clock (s), the waves' time
+    sea: SeaFieldWp  # [N, K] the wave fields the forward-looking altimeter reads
+    preview_seconds: wp.array(dtype=wp.float32)  # [max(P, 1)] its look-ahead times (s)
 
 
 @wp.struct
@@ -89,6 +95,7 @@ class SeaSkimmingConstants:
     stall_alpha: float
     stall_speed: float
     observation_clip: float
+    preview_count: int  # P, the forward-looking altimeter's readings (observations 15..15+P-1)
 
 
 @wp.func
@@ -109,6 +116,20 @@ def write_observation(f: FlightState, c: SeaSkimmingConstants, commanded: float,
     observation[i, 10] = clip(commanded / c.span, lim)
     for k in range(4):
         observation[i, 11 + k] = clip(previous_action[k], lim)
+
+
+@wp.func
+def write_preview(f: FlightState, buf: SeaSkimmingBuffers, c: SeaSkimmingConstants, commanded: float,
+                  observation: wp.array2d(dtype=wp.float32), i: int):
+    """observation[i, 15 + k] <- the forward-looking altimeter's clearance error tau_k ahead, (h - eta(p +
+    V_g tau_k, t) - c*)/(b/4) clipped, for the P look-ahead times (nothing when P = 0)."""
+    row = wp.min(i, buf.sea.amplitude.shape[0] - 1)
+    for k in range(c.preview_count):
+        tau = buf.preview_seconds[k]
+        north = f.position_ned[0] + f.velocity_ned[0] * tau
+        east = f.position_ned[1] + f.velocity_ned[1] * tau
+        water = sea_elevation_wp(buf.sea, row, north, east, buf.sim_time[i])
+        observation[i, 15 + k] = clip((f.height - water - commanded) / (0.25 * c.span), c.observation_clip)
 
 
 @wp.func
@@ -151,6 +172,7 @@ def sea_skimming_step(sim: SimulatorViews, buf: SeaSkimmingBuffers, c: SeaSkimmi
     reason[i] = termination_code(f, c.stall_alpha, c.stall_speed, f.clearance > c.ceiling)
     buf.previous_action[i] = action
     write_observation(f, c, buf.commanded_clearance[i], clearance_rate, action, observation, i)
+    write_preview(f, buf, c, buf.commanded_clearance[i], observation, i)
 
 
 @wp.func
@@ -166,6 +188,7 @@ def sea_skimming_start(sim: SimulatorViews, buf: SeaSkimmingBuffers, c: SeaSkimm
         rate = 0.0
     publish(f, buf, rate, i)
     write_observation(f, c, buf.commanded_clearance[i], rate, buf.previous_action[i], observation, i)
+    write_preview(f, buf, c, buf.commanded_clearance[i], observation, i)
 
 
 @wp.func
@@ -175,6 +198,7 @@ def sea_skimming_observe(f: FlightState, buf: SeaSkimmingBuffers, c: SeaSkimming
     buffers, no side effect."""
     write_observation(f, c, buf.commanded_clearance[i], buf.clearance_rate[i], buf.previous_action[i],
                       observation, i)
+    write_preview(f, buf, c, buf.commanded_clearance[i], observation, i)
 
 
 #: The step kernel (:func:`sea_skimming_step` of env i = offset + tid), the start kernel and the observe
@@ -198,12 +222,13 @@ def sea_skimming_constants(task: Task) -> Any:
         "w_tip": cfg.w_tip, "tip_margin": cfg.tip_margin * span, "w_smooth": cfg.w_smooth,
         "w_power": cfg.w_power, "survival_bonus": cfg.survival_bonus, "stall_alpha": task.stall_alpha,
         "stall_speed": task.stall_speed, "observation_clip": task.observation_clip,
+        "preview_count": len(cfg.preview_seconds),
     })
 
 
 class FusedSeaSkimmingStep(FusedStep):
     """The recorded launch of :func:`sea_skimming_step_kernel` for one sea-skimming task: observation
-    [N, 15], reward [N], reason [N] long."""
+    [N, 15 + P], reward [N], reason [N] long."""
 
     kernel = sea_skimming_step_kernel
     kernel_func = sea_skimming_step
@@ -213,8 +238,16 @@ class FusedSeaSkimmingStep(FusedStep):
     observe_kernel = sea_skimming_observe_kernel
 
     def __init__(self, task: Task):
+        times = task.config.preview_seconds or (0.0,)
+        self.preview_seconds = torch.tensor(times, device=task.device, dtype=torch.float32)
         super().__init__(task)
         self.bind()
+
+    def task_simulator_tensors(self) -> tuple[torch.Tensor, ...]:
+        """The clock [N] and the wave fields [N, K] (six) the forward-looking altimeter reads."""
+        sim = self.task.sim
+        sea = sim.sea if sim.sea is not None else sim.ensure_sea()
+        return (sim.time, *(getattr(sea, field.name) for field in fields(SeaSurface)))
 
     def task_inputs(self) -> list[Any]:
         task = self.task
@@ -223,6 +256,8 @@ class FusedSeaSkimmingStep(FusedStep):
             for name in ("time", "commanded_clearance", "clearance", "clearance_error", "clearance_rate",
                          "surface_rate", "lowest_tip_clearance", "surface_elevation", "reference_altitude",
                          "previous_action")})
-        fill_struct(buf, {"action": self.action})
+        fill_struct(buf, {"action": self.action, "sim_time": self.task_tensors[0],
+                          "preview_seconds": self.preview_seconds})
+        buf.sea = sea_field_views(SeaSurface(*self.task_tensors[1:]))
         bind_reward_terms(buf, task)
         return [buf, sea_skimming_constants(task)]

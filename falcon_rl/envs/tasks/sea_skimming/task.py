@@ -8,7 +8,7 @@ b (b the span) and the aircraft starts c* + U(offset_min, offset_max) b above th
 trim it starts from is solved in ground effect at the middle of the commanded band.
 
 Clearance c is what a radar altimeter reads: the CG's height above the water under it (the derived state's
-``surface_clearance``; over the ground the height). e_c = c - c*, e_Va = V_a - V_a*. Observation (15,
+``surface_clearance``; over the ground the height). e_c = c - c*, e_Va = V_a - V_a*. Observation (15 + P,
 clipped to [-5, 5]):
 
     o = [e_c/(b/4), cdot/sigma_v, e_Va/sigma_V, phi/(pi/4), theta/(pi/4), p/2, q/2, r/2, alpha/20deg,
@@ -16,8 +16,12 @@ clipped to [-5, 5]):
 
 cdot the altimeter's rate (finite difference over the env step, 0 on an episode's first step), sigma_v
 the airframe's climb-rate limit, sigma_V = ``airspeed_scale`` V_a*, v_z the NED (down) velocity, a_{t-1}
-the previous action (4). Action [delta_e, delta_a, delta_r, delta_t] in [-1, 1]^4: over waves the span's
-clearance varies, so the aircraft needs its ailerons to stay level.
+the previous action (4). With ``preview_seconds`` tau_1..tau_P the forward-looking altimeter's P clearance
+errors ahead follow, (h - eta(p + V_g tau_k, t) - c*)/(b/4): h the height above the mean level, p the
+CG's horizontal position, V_g its horizontal ground velocity and eta the water's elevation there now (what
+a scanning laser reads of the water ahead; the aircraft gets there about tau_k later, the waves by then
+moved on). Action [delta_e, delta_a, delta_r, delta_t] in [-1, 1]^4: over waves the span's clearance
+varies, so the aircraft needs its ailerons to stay level.
 
 Reward (named terms):
 
@@ -55,6 +59,10 @@ if TYPE_CHECKING:
     from ..warp_common import FusedStep
 
 
+#: The most look-ahead times of the forward-looking altimeter.
+MAX_PREVIEW = 8
+
+
 @dataclass
 class SeaSkimmingConfig(TaskConfig):
     """Sea-skimming parameters (SI units, angles in rad, clearances as fractions of the span)."""
@@ -69,6 +77,10 @@ class SeaSkimmingConfig(TaskConfig):
     #: The start is U(offset_min, offset_max) b above the commanded clearance.
     offset_min: float = 0.0
     offset_max: float = 0.25
+    #: Look-ahead times (s) of the forward-looking altimeter: the clearance the aircraft would have over
+    #: the water ahead along its ground track, V_g tau seconds away, if it held its height (one observation
+    #: each; empty: no look-ahead, the 15 observations alone).
+    preview_seconds: tuple[float, ...] = ()
     #: "lost" above this many spans of clearance.
     ceiling: float = 4.0
     airspeed_scale: float = 0.1
@@ -88,12 +100,17 @@ class SeaSkimmingConfig(TaskConfig):
     non_negative: ClassVar[tuple[str, ...]] = ("offset_min", "offset_max", "sea_states")
     ordered: ClassVar[tuple[tuple[str, str], ...]] = (("clearance_min", "clearance_max"),
                                                       ("offset_min", "offset_max"))
+    may_be_empty: ClassVar[tuple[str, ...]] = ("preview_seconds",)
 
     def check(self, task: str) -> None:
         super().check(task)
         if not all(float(code).is_integer() and 0 <= code <= 6 for code in self.sea_states):
             raise ValueError(f"{task} option sea_states must hold WMO sea-state codes 0-6, got "
                              f"{self.sea_states!r}")
+        if len(self.preview_seconds) > MAX_PREVIEW or not all(
+                0.0 < tau <= 5.0 for tau in self.preview_seconds):
+            raise ValueError(f"{task} option preview_seconds must hold at most {MAX_PREVIEW} look-ahead "
+                             f"times in (0, 5] s, got {self.preview_seconds!r}")
         if self.clearance_max + self.offset_max >= self.ceiling:
             raise ValueError(f"{task} options clearance_max + offset_max < ceiling required, got "
                              f"{self.clearance_max} + {self.offset_max} >= {self.ceiling}")
@@ -112,6 +129,7 @@ class SeaSkimmingTask(Task):
     def __init__(self, config: SeaSkimmingConfig, sim: Simulator, generator: torch.Generator,
                  control_dt: float, ground_effect: bool | str = True):
         super().__init__(config, sim, generator, control_dt, ground_effect)
+        self.observation_dim = type(self).observation_dim + len(config.preview_seconds)
         self.span = float(self.airframe.geometry.span)
         middle = 0.5 * (config.clearance_min + config.clearance_max) * self.span
         self.trim = trim_point(sim, self.trim_airspeed, height=max(middle, 0.1), ground_effect=ground_effect)
