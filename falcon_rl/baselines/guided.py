@@ -35,7 +35,7 @@ from .guidance.l1 import L1Params, l1_loiter, l1_waypoints
 from .guidance.npfg import NPFGParams, npfg
 from .guidance.paths import PathFrame, circle_frame, line_frame, unit
 from .guidance.tecs import TECSParams, climb_rate_setpoint
-from .lqr import AttitudeLQR
+from .lqr import AttitudeLQR, GainSchedule
 
 if TYPE_CHECKING:
     from pathlib import Path
@@ -187,11 +187,12 @@ class Executor(Protocol):
 
 
 class LQRExecutor:
-    """The attitude LQRI (:class:`~falcon_rl.baselines.lqr.AttitudeLQR`) as an executor."""
+    """The attitude LQRI (:class:`~falcon_rl.baselines.lqr.AttitudeLQR`; its gain ``schedule``, by default
+    out of ground effect at 100 m) as an executor."""
 
     def __init__(self, airframe: Airframe, dt: float, device: str | torch.device = "cpu",
-                 dtype: torch.dtype = torch.float32):
-        self.lqr = AttitudeLQR(airframe, dt, device, dtype)
+                 dtype: torch.dtype = torch.float32, schedule: GainSchedule | None = None):
+        self.lqr = AttitudeLQR(airframe, dt, device, dtype, schedule=schedule)
         self.in_keys = [("state", k) for k in STATE_KEYS]
 
     def act(self, td: TensorDictBase, v: TensorDictBase, bank: torch.Tensor, climb: torch.Tensor,

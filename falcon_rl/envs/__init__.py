@@ -34,6 +34,7 @@ BUILTIN_GYM_IDS: dict[str, tuple[str, int]] = {
     "altitude": ("falcon_rl/Altitude-v0", 600),
     "attitude": ("falcon_rl/Attitude-v0", 600),
     "climb_descend": ("falcon_rl/ClimbDescend-v0", 1200),
+    "landing": ("falcon_rl/Landing-v0", 1200),
     "path_following": ("falcon_rl/PathFollowing-v0", 800),
     "sea_skimming": ("falcon_rl/SeaSkimming-v0", 600),
     "trajectory": ("falcon_rl/Trajectory-v0", 800),

@@ -7,11 +7,11 @@
 
 Registered ids: each task's ``TaskSpec.gym_id`` (falcon_rl/Altitude-v0, falcon_rl/Attitude-v0,
 falcon_rl/ClimbDescend-v0, falcon_rl/PathFollowing-v0, falcon_rl/Trajectory-v0, falcon_rl/SeaSkimming-v0,
-and any task registered later once ``register_gym_envs()`` runs again), each with a ``vector_entry_point``
-(one batched simulator, :class:`falcon_rl.envs.gym.vector.FalconVectorEnv`) and ``max_episode_steps`` = the
-task's default horizon (episode_seconds / control period of the default configs). Keyword arguments are
-those of :func:`falcon_rl.envs.make_env` (airframe, backend, device, seed and task or env options);
-the backend defaults to ``defaults.DEFAULT_BACKEND``.
+falcon_rl/Landing-v0, and any task registered later once ``register_gym_envs()`` runs again), each with a
+``vector_entry_point`` (one batched simulator, :class:`falcon_rl.envs.gym.vector.FalconVectorEnv`) and
+``max_episode_steps`` = the task's default horizon (episode_seconds / control period of the default
+configs). Keyword arguments are those of :func:`falcon_rl.envs.make_env` (airframe, backend, device, seed
+and task or env options); the backend defaults to ``defaults.DEFAULT_BACKEND``.
 
 Horizon: the env truncates at its own horizon (episode_seconds / (dt x decimation)) and
 ``gymnasium.make`` adds ``TimeLimit(max_episode_steps)``; both count from the same reset, so with the

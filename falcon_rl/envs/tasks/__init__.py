@@ -12,6 +12,7 @@ from .altitude import AltitudeConfig, AltitudeTask
 from .attitude import AttitudeConfig, AttitudeTask
 from .base import TERMINATION_CODE, TERMINATION_REASONS, Task, TaskConfig
 from .climb_descend import ClimbDescendConfig, ClimbDescendTask
+from .landing import LandingConfig, LandingTask
 from .path_following import PathFollowingConfig, PathFollowingTask
 from .registry import (
     TASK_SPECS,
@@ -38,6 +39,8 @@ __all__ = [
     "AttitudeTask",
     "ClimbDescendConfig",
     "ClimbDescendTask",
+    "LandingConfig",
+    "LandingTask",
     "Metric",
     "PathFollowingConfig",
     "PathFollowingTask",
