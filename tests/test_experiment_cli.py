@@ -77,3 +77,15 @@ def test_sea_state_study_scores_each_sea_state(tmp_path: Path) -> None:
     assert summary["0/clearance_rmse_span"] < summary["3/clearance_rmse_span"]  # waves are harder to skim
     assert 0.1 < summary["0/power_saved"] < 0.25  # the V7 saves ~16 % at 0.25 b (the trim table's 16.1 %)
     assert [Path(f).name for f in study["figures"]] == ["sea_state.png"]
+
+
+def test_landing_study_flies_the_same_starts_with_and_without_ground_effect(tmp_path: Path) -> None:
+    doc = run("landing", "--airframes", "airship_v7", "--episodes", "2", "--out", str(tmp_path))
+    study = doc["studies"]["landing"]
+    assert study["finished"] == study["cells"] == 1
+    report = Path(study["report"]).read_text()
+    assert "| In limits GE | In limits no GE |" in report and "| airship_v7 | tecs-flare |" in report
+    summary = json.loads(Path(study["results"]).read_text())["cells"][0]["summary"]
+    assert summary["ge/landed_within_limits"] == summary["no_ge/landed_within_limits"] == 1.0
+    assert summary["ge/sink_rate_mps"] < summary["no_ge/sink_rate_mps"]  # the cushion softens the touchdown
+    assert [Path(f).name for f in study["figures"]] == ["landing.png"]

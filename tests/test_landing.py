@@ -8,6 +8,7 @@ import math
 import gymnasium
 import pytest
 import torch
+from engine_parity import trim_flights
 from gymnasium.utils.env_checker import check_env
 from tensordict import TensorDict
 from torchrl.envs.utils import check_env_specs
@@ -99,15 +100,7 @@ def test_a_wing_tip_first_is_a_tip_strike(backend):
 
 @needs_warp
 def test_the_task_step_agrees_on_both_engines():
-    outputs = {}
-    for backend in ("torch", "warp"):
-        env = make_env("landing", "airship_v7", num_envs=4, backend=backend, seed=2)
-        td = env.reset()
-        action = env.trim_action().expand(4, -1).clone()
-        for _ in range(20):
-            td["action"] = action
-            td = env.step_mdp(env.step(td))
-        outputs[backend] = td
+    outputs = trim_flights("landing", "airship_v7")
     assert torch.allclose(outputs["torch"]["observation"], outputs["warp"]["observation"], atol=5e-3)
     key = ("task", "glide_path_error")
     assert torch.allclose(outputs["torch"][key], outputs["warp"][key], atol=5e-3)

@@ -20,7 +20,7 @@ STUDY_FILES = ("report.md", "tables.tex", "results.json")
 #: The figures each study draws (``{airframe}``: one per airframe).
 STUDY_FIGURES = {"altitude": ("altitude.png",), "maneuvers": ("bank_{airframe}.png", "tracks.png"),
                  "ground-effect": ("ground_effect.png",), "robustness": ("robustness.png",),
-                 "sea-state": ("sea_state.png",)}
+                 "sea-state": ("sea_state.png",), "landing": ("landing.png",)}
 #: Characters allowed for the name of a training metric's log file (``logs/<run>/scalars/<metric>.csv``).
 METRIC_NAME_ALLOWANCE = 32
 
@@ -36,7 +36,7 @@ def scale_of(args: argparse.Namespace) -> Any:
         n = args.episodes
         scale = replace(scale, learned_episodes=n, baseline_episodes=n, mppi_episodes=n, maneuver_episodes=n,
                         mppi_maneuver_episodes=n, ge_episodes=n, robustness_episodes=n, sea_episodes=n,
-                        sea_mppi_episodes=n)
+                        sea_mppi_episodes=n, landing_episodes=n)
     if args.seconds is not None:
         scale = replace(scale, maneuver_seconds=args.seconds, robustness_seconds=args.seconds,
                         sea_seconds=args.seconds)
@@ -194,4 +194,6 @@ def study_figures(study: str, cells: list, results: dict, folder: Path) -> list[
         written.append(figures.plot_robustness_study(shown, folder / names[0]))
     elif study == "sea-state":
         written.append(figures.plot_sea_state_study(shown, folder / names[0]))
+    elif study == "landing":
+        written.append(figures.plot_landing_study(shown, folder / names[0]))
     return [p for p in written if p is not None]

@@ -4,6 +4,7 @@
     falcon-rl experiment altitude --controllers ppo,lqr --seeds 3 --scale paper
     falcon-rl experiment maneuvers --runner ray --ray-address auto
     falcon-rl experiment sea-state --scale quick                # sea skimming over sea states 0-5
+    falcon-rl experiment landing --scale quick                  # landings with ground effect on and off
     falcon-rl experiment ablation --tasks altitude,attitude --airframe volantex_ranger \\
         --controllers lqr,ppo --episodes 20 --out runs/ablation
 
@@ -11,10 +12,11 @@ The studies (altitude, maneuvers, ground-effect, robustness; ``all``) run as one
 per study x airframe x controller x training seed x MPPI draw, cached under ``--out``/cells: a killed
 sweep resumes where it stopped and a changed cell reruns alone (``falcon_rl.experiment``).
 ``sea-state`` (not in ``all``) flies the sea-skimming protocol at 0.25 b over sea states 0-5 per airframe
-and controller (the altimeter LQR; PPO where a policy exists). Each study writes ``--out``/<study>/report.md,
-tables.tex (the paper's layout), results.json and its figures. ``--scale quick`` is a smoke run with
-shipped policies and one seed; ``paper`` the paper's sizes. Learned rows without a shipped policy are
-trained with ``--train`` and otherwise left empty.
+and controller (the altimeter LQR; PPO where a policy exists); ``landing`` (not in ``all``) flies the
+landing protocol from the same starts with ground effect on and off (``tecs-flare``). Each study writes
+``--out``/<study>/report.md, tables.tex (the paper's layout), results.json and its figures. ``--scale
+quick`` is a smoke run with shipped policies and one seed; ``paper`` the paper's sizes. Learned rows
+without a shipped policy are trained with ``--train`` and otherwise left empty.
 
 ``ablation``:
 For each task and controller, the task's protocol on the full model and on one arm per phenomenon
@@ -47,11 +49,11 @@ from ._common import (
 )
 
 NAME = "experiment"
-HELP = ("the paper's studies (altitude, maneuvers, ground-effect, robustness, all), the sea-state study and "
-        "the physics ablation")
+HELP = ("the paper's studies (altitude, maneuvers, ground-effect, robustness, all), the sea-state and "
+        "landing studies and the physics ablation")
 #: The paper's four studies (``all``), then the studies of falcon-rl's own.
 STUDY_ACTIONS = ("altitude", "maneuvers", "ground-effect", "robustness")
-OWN_STUDIES = ("sea-state",)
+OWN_STUDIES = ("sea-state", "landing")
 ACTIONS = (*STUDY_ACTIONS, *OWN_STUDIES, "all", "ablation")
 #: The files ``experiment ablation`` writes under --out.
 ABLATION_FILES = ("ablation.png", "report.md", "results.json")
@@ -59,8 +61,8 @@ ABLATION_FILES = ("ablation.png", "report.md", "results.json")
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("action", choices=ACTIONS,
-                        help="a study, all four of the paper, sea-state, or ablation (one phenomenon "
-                             "simplified at a time)")
+                        help="a study, all four of the paper, sea-state, landing, or ablation (one "
+                             "phenomenon simplified at a time)")
     parser.add_argument("--airframes", default=None,
                         help="studies: comma list of airframes (default airship_v7,volantex_ranger)")
     parser.add_argument("--scale", choices=("quick", "paper"), default="quick",
@@ -80,7 +82,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="ablation: shipped name or path to a JSON file")
     parser.add_argument("--controllers", default=None,
                         help="comma list (ablation default lqr: the tasks' baselines, ppo, policy files; "
-                             "studies default: each study's, from ppo, sac, td3, lqr, mppi)")
+                             "studies default: each study's, from ppo, sac, td3, lqr, mppi, tecs-flare)")
     parser.add_argument("--episodes", type=positive_int, default=None,
                         help="episodes per cell or arm (default: the scale's; ablation 20; attitude: per "
                              "maneuver)")

@@ -6,6 +6,8 @@ that runs one cell.
     ground-effect   the policy column: thrust change and settled error while a controller holds each
                     h/b band with the ground-effect correction on and off
     robustness      the attitude executor under sensor noise, sensor delay, action delay, turbulence
+    sea-state       (falcon-rl's own) sea skimming at 0.25 b over sea states 0-5
+    landing         (falcon-rl's own) the landing protocol from the same starts with ground effect on and off
 
 Scales (:data:`SCALES`): ``quick`` (a smoke run of about a quarter of an hour on a 2-core CPU: shipped
 policies, one seed, small episode counts, maneuvers cut to 20 s, the robustness grid on the circle
@@ -32,17 +34,18 @@ from ..envs.maneuvers import MANEUVERS
 from .cells import Cell, register_cell_function
 from .study_layouts import SEA_STATES
 
-STUDIES: tuple[str, ...] = ("altitude", "maneuvers", "ground-effect", "robustness", "sea-state")
+STUDIES: tuple[str, ...] = ("altitude", "maneuvers", "ground-effect", "robustness", "sea-state", "landing")
 LEARNED: tuple[str, ...] = ("ppo", "sac", "td3")
 #: Every controller a study can score.
-CONTROLLERS: tuple[str, ...] = (*LEARNED, "lqr", "mppi")
+CONTROLLERS: tuple[str, ...] = (*LEARNED, "lqr", "mppi", "tecs-flare")
 #: The task each study flies.
 STUDY_TASK: dict[str, str] = {"altitude": "altitude", "maneuvers": "attitude", "ground-effect": "altitude",
-                              "robustness": "attitude", "sea-state": "sea_skimming"}
+                              "robustness": "attitude", "sea-state": "sea_skimming", "landing": "landing"}
 #: Controllers each study scores by default.
 STUDY_CONTROLLERS: dict[str, tuple[str, ...]] = {
     "altitude": ("ppo", "sac", "td3", "lqr", "mppi"), "maneuvers": ("ppo", "sac", "td3", "lqr", "mppi"),
-    "ground-effect": ("ppo", "lqr"), "robustness": ("ppo", "lqr"), "sea-state": ("ppo", "lqr", "mppi")}
+    "ground-effect": ("ppo", "lqr"), "robustness": ("ppo", "lqr"), "sea-state": ("ppo", "lqr", "mppi"),
+    "landing": ("tecs-flare",)}
 #: The paper's two reference airframes.
 AIRFRAMES: tuple[str, ...] = ("airship_v7", "volantex_ranger")
 
@@ -68,6 +71,7 @@ class Scale:
     sea_mppi_episodes: int = 4  # per sea state, of one MPPI draw
     sea_seconds: float = 20.0  # episode length of the sea-state study
     sea_states: tuple[int, ...] = SEA_STATES  # the WMO codes the sea-state study flies
+    landing_episodes: int = 20  # per ground-effect arm of the landing study
 
 
 SCALES: dict[str, Scale] = {
@@ -79,7 +83,7 @@ SCALES: dict[str, Scale] = {
                    mppi_draws=5, maneuver_episodes=25, maneuver_seconds=None, mppi_maneuver_episodes=5,
                    ge_episodes=10, ge_seconds=30.0, robustness_episodes=32, robustness_seconds=30.0,
                    robustness_maneuvers=MANEUVERS, sea_episodes=50, sea_mppi_episodes=20,
-                   sea_seconds=30.0),
+                   sea_seconds=30.0, landing_episodes=100),
 }
 
 
@@ -122,6 +126,8 @@ def _study_params(study: str, controller: str, scale: Scale) -> dict[str, Any]:
         episodes = scale.sea_mppi_episodes if controller == "mppi" else scale.sea_episodes
         return {"episodes": episodes, "episode_seconds": scale.sea_seconds,
                 "sea_states": scale.sea_states}
+    if study == "landing":
+        return {"episodes": scale.landing_episodes}
     return {"episodes": scale.robustness_episodes, "episode_seconds": scale.robustness_seconds,
             "maneuvers": scale.robustness_maneuvers}
 
@@ -359,7 +365,29 @@ def sea_state_cell(cell: Cell) -> dict[str, Any]:
     return {"summary": summary, "rows": rows}
 
 
+def landing_cell(cell: Cell) -> dict[str, Any]:
+    """The landing protocol of one airframe and controller from the same starts with ground effect on and
+    off: per arm (summary "<ge|no_ge>/<metric>") the touchdowns within the limits, the touchdown's sink
+    rate, pitch, bank, lateral and longitudinal position and the float; the rows whole."""
+    from ..evaluation.landing import landing_protocol
+
+    try:
+        source = policy_source(cell)
+    except NoPolicyError as error:
+        return _no_policy(error)
+    params = cell.param_dict
+    summary: dict[str, float] = {}
+    rows = []
+    for arm, ground_effect in (("ge", True), ("no_ge", False)):
+        result = landing_protocol(cell.airframe, cell.controller.upper(), factory(cell, source),
+                                  episodes=int(params["episodes"]), seed=cell.seed + 1000 * cell.draw,
+                                  backend=params.get("backend", DEFAULT_BACKEND), ground_effect=ground_effect)
+        summary.update({f"{arm}/{key}": value for key, value in result.summary.items()})
+        rows.append({"ground_effect": ground_effect, **result.summary})
+    return {"summary": summary, "rows": rows}
+
+
 for _study, _name in (("altitude", "altitude_cell"), ("maneuvers", "maneuvers_cell"),
                       ("ground-effect", "ground_effect_cell"), ("robustness", "robustness_cell"),
-                      ("sea-state", "sea_state_cell")):
+                      ("sea-state", "sea_state_cell"), ("landing", "landing_cell")):
     register_cell_function(_study, f"{__name__}:{_name}")

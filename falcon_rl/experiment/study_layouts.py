@@ -14,6 +14,12 @@ from .results import Column
 #: The sea states of the sea-state study's tables (its scales fly these).
 SEA_STATES: tuple[int, ...] = (0, 1, 2, 3, 4, 5)
 
+#: The landing study's arms: (summary prefix, header label).
+LANDING_ARMS: tuple[tuple[str, str], ...] = (("ge", "GE"), ("no_ge", "no GE"))
+#: The landing study's touchdown columns: (metric, header, digits).
+LANDING_TOUCHDOWN: tuple[tuple[str, str, int], ...] = (
+    ("landed_within_limits", "In limits", 2), ("sink_rate_mps", "Sink", 2), ("pitch_deg", "Pitch", 1))
+
 _TITLES = {"circle": "Circle", "figure8": "Fig.-8", "helix": "Helix", "s_turn": "S-turn"}
 
 
@@ -67,4 +73,15 @@ STUDY_TABLES: dict[str, tuple[StudyTable, ...]] = {
             ("contacts", "water_contact_rate", "water-contact rate", 2),
             ("rmse", "clearance_rmse_span", "clearance RMSE (spans, surviving episodes)", 3),
             ("power", "power_saved", "power saved against free flight (fraction, surviving episodes)", 3))),
+    "landing": (
+        StudyTable("touchdown", "Landing: touchdowns within the limits, the touchdown's sink rate (m/s) and "
+                   "pitch (deg), ground effect on / off", ("airframe", "controller"), ("Airframe", "Alg."),
+                   tuple(Column(f"{arm}/{metric}", f"{title} {label}", digits)
+                         for metric, title, digits in LANDING_TOUCHDOWN for arm, label in LANDING_ARMS)),
+        StudyTable("float", "Landing: where the wheels touched (m past the aim point) and the float from "
+                   "ground effect's band (m), ground effect on / off", ("airframe", "controller"),
+                   ("Airframe", "Alg."),
+                   tuple(Column(f"{arm}/{metric}", f"{title} {label}", 1)
+                         for metric, title in (("longitudinal_m", "Long."), ("float_m", "Float"))
+                         for arm, label in LANDING_ARMS))),
 }

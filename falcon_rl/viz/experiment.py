@@ -195,3 +195,27 @@ def plot_sea_state_study(results: Results, path: str | Path) -> Path | None:
     axes[0, 0].legend(fontsize=8)
     fig.suptitle("Sea skimming at 0.25 b clearance against the sea state")
     return save_figure(fig, path)
+
+
+def plot_landing_study(results: Results, path: str | Path) -> Path | None:
+    """The touchdown's sink rate and the float in ground effect's band, ground effect on against off, one
+    group of bars per airframe and controller. None without rows."""
+    with_rows = {key: value for key, value in results.items() if value.get("rows")}
+    if not with_rows:
+        return None
+    labels = [f"{airframe}\n{controller}" for airframe, controller in with_rows]
+    metrics = (("sink_rate_mps", "sink rate at touchdown (m/s)"), ("float_m", "float from one span (m)"))
+    fig, axes = plt.subplots(1, len(metrics), figsize=(5.5 * len(metrics), 4.2), squeeze=False)
+    x = np.arange(len(labels))
+    for col, (key, label) in enumerate(metrics):
+        ax = axes[0, col]
+        for offset, (ground_effect, name) in ((-0.2, (True, "ground effect on")), (0.2, (False, "off"))):
+            values = [next((np.nan if r.get(key) is None else r[key] for r in result["rows"]
+                            if r["ground_effect"] == ground_effect), np.nan) for result in with_rows.values()]
+            ax.bar(x + offset, values, width=0.4, label=name)
+        ax.set_xticks(x, labels, fontsize=8)
+        ax.set(ylabel=label)
+        ax.grid(alpha=0.3, axis="y")
+    axes[0, 0].legend(fontsize=8)
+    fig.suptitle("Landing: what ground effect does to the touchdown and the float")
+    return save_figure(fig, path)
