@@ -143,3 +143,18 @@ def test_tecs_and_the_flare_land_within_the_limits(airframe):
     assert result.summary["landed_within_limits"] == 1.0
     assert result.summary["sink_rate_mps"] < 0.6
     assert "tecs-flare" in task_spec("landing").controllers
+
+
+@needs_warp
+def test_a_ditching_touches_down_on_the_water():
+    """With ``sea_states`` the surface is the sea: the wheels (a hull's keel) meet the water under them."""
+    from falcon_rl.evaluation.controllers import make_controller
+    from falcon_rl.evaluation.landing import landing_protocol
+
+    env = make_env("landing", "airship_v7", num_envs=2, backend="warp", seed=0, sea_states=(2.0,))
+    env.reset()
+    assert bool(env.sim.state["over_water"].all()) and float(env.sim.sea.amplitude.abs().max()) > 0.0
+    result = landing_protocol("airship_v7", "tecs-flare", lambda env: make_controller("tecs-flare", env),
+                              episodes=2, seed=0, sea_states=(1.0,))
+    assert result.summary["touchdown"] == 1.0 and result.settings["sea_states"] == (1.0,)
+    assert result.summary["sink_rate_mps"] < 0.6
