@@ -79,8 +79,9 @@ def test_sea_state_study_scores_each_sea_state(tmp_path: Path) -> None:
     assert [Path(f).name for f in study["figures"]] == ["sea_state.png"]
 
 
+@pytest.mark.slow  # ~50 s: two ground-effect designs and two 10 ms landings (the protocol: test_landing.py)
 def test_landing_study_flies_the_same_starts_with_and_without_ground_effect(tmp_path: Path) -> None:
-    doc = run("landing", "--airframes", "airship_v7", "--episodes", "2", "--out", str(tmp_path))
+    doc = run("landing", "--airframes", "airship_v7", "--episodes", "1", "--out", str(tmp_path))
     study = doc["studies"]["landing"]
     assert study["finished"] == study["cells"] == 1
     report = Path(study["report"]).read_text()

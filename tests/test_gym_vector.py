@@ -243,4 +243,7 @@ def test_tensor_core_steps_exactly_as_torchrl_step_and_maybe_reset(task: str, op
             final = result[4]["final_info"]
             seen |= set(final["termination_reason"][final["_termination_reason"]].tolist())
         same(result, slow.step(actions), f"step {step}")
-    assert {0, TERMINATION_CODE["alpha_stall"], TERMINATION_CODE["non_finite"]} <= seen
+    # the landing task flies its approach at 1.3 V_stall or so: the same elevator pulls do not reach 1.5
+    # alpha_stall within its 1 s episodes (truncations and the NaN state still end them)
+    stalls = set() if task == "landing" else {TERMINATION_CODE["alpha_stall"]}
+    assert {0, TERMINATION_CODE["non_finite"], *stalls} <= seen

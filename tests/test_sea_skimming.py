@@ -8,6 +8,7 @@ import json
 import gymnasium
 import pytest
 import torch
+from engine_parity import trim_flights
 from gymnasium.utils.env_checker import check_env
 from torchrl.envs.utils import check_env_specs
 
@@ -34,7 +35,7 @@ def test_the_gym_id_alone_makes_a_checked_env():
     env = gymnasium.make("falcon_rl/SeaSkimming-v0")
     check_env(env.unwrapped)
     observation, _ = env.reset(seed=1)
-    assert observation.shape == (15,)
+    assert observation.shape == (19,)  # 15 + the forward-looking altimeter's 4 readings
 
 
 def test_each_episode_draws_its_sea_state_heading_and_clearance():
@@ -51,8 +52,13 @@ def test_each_episode_draws_its_sea_state_heading_and_clearance():
     headings = task.heading_to_waves[:, None] - torch.tensor([0.0, torch.pi / 2, torch.pi])
     assert bool((headings.abs().min(-1).values < 1e-6).all())
     assert bool((td["task", "clearance"] > td["task", "commanded_clearance"] - 1e-4).all())
-    # Over its sea an env starts above the water under it, wherever the sea's mean level is.
+    # Over its sea an env starts above the water under it, wherever the sea's mean level is, climbing or
+    # sinking with it (a level start over a rising crest would meet it before any controller could act).
     assert bool((td["task", "clearance"] > 0).all())
+    zeros = torch.zeros(16)
+    rising = sea.elevation_rate(zeros, zeros, 0.0)
+    assert float(rising.abs().max()) > 0.1
+    assert torch.allclose(-td["state", "velocity_ned"][:, 2], rising, atol=1e-4)
     # A partial reset draws only the reset rows' fields.
     before = sea.phase.clone()
     mask = torch.zeros(16, dtype=torch.bool)
@@ -64,15 +70,7 @@ def test_each_episode_draws_its_sea_state_heading_and_clearance():
 
 @needs_warp
 def test_the_task_step_agrees_on_both_engines():
-    outputs = {}
-    for backend in ("torch", "warp"):
-        env = make_env("sea_skimming", "airship_v7", num_envs=4, backend=backend, seed=2, sea_states=(3.0,))
-        td = env.reset()
-        action = env.trim_action().expand(4, -1).clone()
-        for _ in range(20):
-            td["action"] = action
-            td = env.step_mdp(env.step(td))
-        outputs[backend] = td
+    outputs = trim_flights("sea_skimming", "airship_v7", sea_states=(3.0,))
     torch_td, warp_td = outputs["torch"], outputs["warp"]
     assert torch.allclose(torch_td["observation"], warp_td["observation"], atol=5e-3)
     assert torch.allclose(torch_td["task", "clearance"], warp_td["task", "clearance"], atol=5e-3)

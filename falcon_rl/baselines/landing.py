@@ -30,7 +30,7 @@ from ..constants import DEG
 from .guidance.paths import PathFrame, line_frame
 from .guidance.tecs import TECSParams
 from .guided import GuidedController, LQRExecutor, PathGuidance
-from .lqr import attitude_schedule
+from .lqr import GainSchedule, attitude_schedule
 
 if TYPE_CHECKING:
     from ..airframe import Airframe
@@ -105,17 +105,30 @@ class LandingGuidance(PathGuidance):
         return bank, climb, speed
 
 
+#: Landing gain schedules by (airframe, its file, control step, ground-effect mode): a design trims and
+#: linearises 28 points (seconds); the schedule is read only, each controller keeps its own integrators.
+_SCHEDULES: dict[tuple[str, str, float, str], GainSchedule] = {}
+
+
+def landing_schedule(airframe: Airframe, dt: float, ground_effect: bool | str) -> GainSchedule:
+    """The landing LQRI's gain schedule (module docstring), designed once per process and key."""
+    key = (airframe.name, str(airframe.path), float(dt), str(ground_effect))
+    if key not in _SCHEDULES:
+        span = float(airframe.geometry.span)
+        _SCHEDULES[key] = attitude_schedule(airframe, dt, heights=tuple(round(f * span, 4) for f in
+                                                                        LANDING_CLEARANCES),
+                                            ground_effect=ground_effect, speed_fractions=LANDING_SPEEDS)
+    return _SCHEDULES[key]
+
+
 def tecs_flare(env: FixedWingEnv) -> GuidedController:
     """The ``tecs-flare`` landing baseline for ``env`` (module docstring)."""
     airframe = env.sim.airframe
-    span = float(airframe.geometry.span)
-    schedule = attitude_schedule(airframe, env.control_dt, heights=tuple(round(f * span, 4) for f in
-                                                                         LANDING_CLEARANCES),
-                                 ground_effect=env.config.ground_effect, speed_fractions=LANDING_SPEEDS)
+    schedule = landing_schedule(airframe, env.control_dt, env.config.ground_effect)
     executor = LQRExecutor(airframe, env.control_dt, env.device, env.sim.dtype, schedule=schedule)
     guidance = LandingGuidance(airframe, env.control_dt, airspeed=env.task.trim_airspeed)
     return GuidedController(guidance, executor)
 
 
 __all__ = ["FLARE_BANK", "LANDING_CLEARANCES", "LANDING_SPEEDS", "FlareParams", "LandingGuidance",
-           "tecs_flare"]
+           "landing_schedule", "tecs_flare"]

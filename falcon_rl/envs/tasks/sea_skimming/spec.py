@@ -17,6 +17,10 @@ SEA_SKIMMING_METRICS: tuple[Metric, ...] = (
 #: its distribution; its validation (``keep_best``) is the protocol's: sea state 3 at 0.25 b.
 TRAINING_SEA_STATES: tuple[float, ...] = (0.0, 1.0, 2.0, 3.0, 4.0)
 
+#: The Ranger (b = 1.62 m: 0.4 m over 0.9 m waves at the protocol's 0.25 b) learns the protocol with the
+#: clearance reward twice as wide (sigma 0.2 b: a gradient from farther off) and 12 M frames.
+RANGER_ENV_OPTIONS = {"sea_states": TRAINING_SEA_STATES, "sigma_clearance": 0.2}
+
 SPEC = register_task(TaskSpec(
     name="sea_skimming", task=SeaSkimmingTask, config=SeaSkimmingConfig, gym_id="falcon_rl/SeaSkimming-v0",
     title="Sea skimming: clearance hold over waves",
@@ -28,5 +32,6 @@ SPEC = register_task(TaskSpec(
     training={"ppo": {"num_envs": 256, "rollout_steps": 32, "frames": 6_000_000, "episode_seconds": 30.0,
                       "reward_scale": 0.1, "eval_every": 500_000, "keep_best": True,
                       "env_options": {"sea_states": TRAINING_SEA_STATES}}},
+    airframe_training={"volantex_ranger": {"ppo": {"frames": 12_000_000, "env_options": RANGER_ENV_OPTIONS}}},
     defaults={"decimation": TRAINING_DECIMATION},
 ))

@@ -4,8 +4,10 @@ Episode: the env flies over its own sea (``Simulator.set_sea``), a sea-state cod
 ``sea_states`` (WMO 0-6; 0 is a calm sea) with the waves travelling north, and the aircraft trimmed at
 cruise heading ``heading_to_waves`` off the waves' direction (0 a following sea, pi/2 a beam sea, pi a
 head sea; one of the tuple per episode). The commanded clearance is c* = U(clearance_min, clearance_max)
-b (b the span) and the aircraft starts c* + U(offset_min, offset_max) b above the water under it. The
-trim it starts from is solved in ground effect at the middle of the commanded band.
+b (b the span) and the aircraft starts c* + U(offset_min, offset_max) b above the water under it, already
+following it: the trimmed flight (solved in ground effect at the middle of the commanded band) pitched by
+the path angle asin(etadot / V*) of the water's rate under it (a level start over a rising crest would
+meet the water within a fraction of a second, before any controller could act).
 
 Clearance c is what a radar altimeter reads: the CG's height above the water under it (the derived state's
 ``surface_clearance``; over the ground the height). e_c = c - c*, e_Va = V_a - V_a*. Observation (15 + P,
@@ -80,7 +82,7 @@ class SeaSkimmingConfig(TaskConfig):
     #: Look-ahead times (s) of the forward-looking altimeter: the clearance the aircraft would have over
     #: the water ahead along its ground track, V_g tau seconds away, if it held its height (one observation
     #: each; empty: no look-ahead, the 15 observations alone).
-    preview_seconds: tuple[float, ...] = ()
+    preview_seconds: tuple[float, ...] = (0.25, 0.5, 0.75, 1.0)
     #: "lost" above this many spans of clearance.
     ceiling: float = 4.0
     airspeed_scale: float = 0.1
@@ -163,9 +165,13 @@ class SeaSkimmingTask(Task):
         assert sea is not None
         zeros = torch.zeros(self.num_envs, device=self.device, dtype=self.dtype)
         water = sea.elevation(zeros, zeros, 0.0).to(self.dtype)  # the start is at (0, 0) and t = 0
+        rising = sea.elevation_rate(zeros, zeros, 0.0).to(self.dtype)
         height = water + clearance + offset
-        return {**self.trim_initial(heading), "position_ned": torch.zeros(3, device=self.device,
-                                                                          dtype=self.dtype),
+        initial = self.trim_initial(heading)
+        # already following the water: the trimmed flight pitched by the path angle of the water's rate
+        path_angle = torch.asin((rising / self.trim_airspeed).clamp(-0.5, 0.5))
+        initial["euler"] = initial["euler"] + torch.stack([zeros, path_angle, zeros], dim=-1)
+        return {**initial, "position_ned": torch.zeros(3, device=self.device, dtype=self.dtype),
                 "height": height}
 
     # ------------------------------------------------------------------ step
