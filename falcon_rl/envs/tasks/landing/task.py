@@ -32,9 +32,10 @@ a sea (``sea_states``: ditching) the surface is the water under the aircraft. Pu
 glide_path_height (= reference_altitude, for altitude-hold controllers), reference_climb_rate,
 glide_path_error, cross_track_error, course_error, wheel_height, the runway as a path (path_point (0, 0),
 path_course 0, path_height = h_gp) for path guidance, touchdown (1 on the touchdown step), the touchdown's
-sink rate (m/s, down positive), pitch, bank, along-track and lateral position (m from the aim point), and
-ground_effect_north (the north position where the wheels first came below one span, ``NOT_YET`` = 1e9
-before: the float in ground effect is its distance to the touchdown).
+sink rate (m/s, down positive; every step's until then), pitch, bank, along-track and lateral position (m
+from the aim point; zero until then), and ground_effect_north (the north position where the wheels first
+came below one span, ``NOT_YET`` = 1e9 before: the float in ground effect is its distance to the
+touchdown).
 
 The step, the start of episodes and the observation are written once, as Warp functions
 (``landing.kernels``); the episode draws are torch, from the env's generator.
