@@ -342,12 +342,10 @@ def robustness_cell(cell: Cell) -> dict[str, Any]:
     return {"summary": summary, "rows": rows}
 
 
-def sea_state_cell(cell: Cell) -> dict[str, Any]:
-    """The sea-skimming protocol of one airframe and controller over each sea state of the cell (at 0.25 b):
-    per code (summary "<code>/<metric>") the water-contact rate, survival, clearance RMSE (spans and m), the
-    tip's closest approach (m) and the power saved against free flight; the rows whole."""
-    from ..evaluation.sea_skimming import sea_skimming_protocol
-
+def _protocol_arms(cell: Cell, protocol: Any, arms: list[tuple[str, dict[str, Any], dict[str, Any]]]
+                   ) -> dict[str, Any]:
+    """One protocol flown per arm of ``cell`` (``arms``: summary prefix, the row's label fields, the arm's
+    protocol options): summary "<prefix>/<metric>" and one row per arm; "no policy" when none."""
     try:
         source = policy_source(cell)
     except NoPolicyError as error:
@@ -355,14 +353,25 @@ def sea_state_cell(cell: Cell) -> dict[str, Any]:
     params = cell.param_dict
     summary: dict[str, float] = {}
     rows = []
-    for code in params["sea_states"]:
-        result = sea_skimming_protocol(cell.airframe, cell.controller.upper(), factory(cell, source),
-                                       episodes=int(params["episodes"]), seed=cell.seed + 1000 * cell.draw,
-                                       backend=params.get("backend", DEFAULT_BACKEND),
-                                       episode_seconds=float(params["episode_seconds"]), sea_state=int(code))
-        summary.update({f"{int(code)}/{key}": value for key, value in result.summary.items()})
-        rows.append({"sea_state": int(code), **result.summary})
+    for prefix, labels, options in arms:
+        result = protocol(cell.airframe, cell.controller.upper(), factory(cell, source),
+                          episodes=int(params["episodes"]), seed=cell.seed + 1000 * cell.draw,
+                          backend=params.get("backend", DEFAULT_BACKEND), **options)
+        summary.update({f"{prefix}/{key}": value for key, value in result.summary.items()})
+        rows.append({**labels, **result.summary})
     return {"summary": summary, "rows": rows}
+
+
+def sea_state_cell(cell: Cell) -> dict[str, Any]:
+    """The sea-skimming protocol of one airframe and controller over each sea state of the cell (at 0.25 b):
+    per code (summary "<code>/<metric>") the water-contact rate, survival, clearance RMSE (spans and m), the
+    tip's closest approach (m) and the power saved against free flight; the rows whole."""
+    from ..evaluation.sea_skimming import sea_skimming_protocol
+
+    seconds = float(cell.param_dict["episode_seconds"])
+    return _protocol_arms(cell, sea_skimming_protocol, [
+        (str(int(code)), {"sea_state": int(code)}, {"episode_seconds": seconds, "sea_state": int(code)})
+        for code in cell.param_dict["sea_states"]])
 
 
 def landing_cell(cell: Cell) -> dict[str, Any]:
@@ -371,20 +380,9 @@ def landing_cell(cell: Cell) -> dict[str, Any]:
     rate, pitch, bank, lateral and longitudinal position and the float; the rows whole."""
     from ..evaluation.landing import landing_protocol
 
-    try:
-        source = policy_source(cell)
-    except NoPolicyError as error:
-        return _no_policy(error)
-    params = cell.param_dict
-    summary: dict[str, float] = {}
-    rows = []
-    for arm, ground_effect in (("ge", True), ("no_ge", False)):
-        result = landing_protocol(cell.airframe, cell.controller.upper(), factory(cell, source),
-                                  episodes=int(params["episodes"]), seed=cell.seed + 1000 * cell.draw,
-                                  backend=params.get("backend", DEFAULT_BACKEND), ground_effect=ground_effect)
-        summary.update({f"{arm}/{key}": value for key, value in result.summary.items()})
-        rows.append({"ground_effect": ground_effect, **result.summary})
-    return {"summary": summary, "rows": rows}
+    return _protocol_arms(cell, landing_protocol, [
+        (arm, {"ground_effect": ground_effect}, {"ground_effect": ground_effect})
+        for arm, ground_effect in (("ge", True), ("no_ge", False))])
 
 
 for _study, _name in (("altitude", "altitude_cell"), ("maneuvers", "maneuvers_cell"),
