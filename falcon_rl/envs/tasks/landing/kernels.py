@@ -96,12 +96,24 @@ class LandingConstants:
 
 
 @wp.func
+def glide_height(f: FlightState, c: LandingConstants) -> float:
+    """h_gp (m) at the aircraft's north position: the gear height plus tan(gamma) x the distance to go."""
+    return c.gear + c.tan_glide * wp.max(-f.position_ned[0], 0.0)
+
+
+@wp.func
+def glide_errors(f: FlightState, c: LandingConstants) -> wp.vec3:
+    """(e_h, e_y, chi_err) of a flight state against the glide path and the centreline."""
+    return wp.vec3(f.height - glide_height(f, c), f.position_ned[1],
+                   wrap_angle_wp(wp.atan2(f.velocity_ned[1], f.velocity_ned[0])))
+
+
+@wp.func
 def landing_errors(f: FlightState, buf: LandingBuffers, c: LandingConstants, i: int) -> wp.vec3:
     """Env i's glide-path reference, wheel height and errors (e_h, e_y, chi_err) into its buffers (the
     ground-effect entry noted); returns the errors."""
     north = f.position_ned[0]
-    to_go = wp.max(-north, 0.0)
-    height_ref = c.gear + c.tan_glide * to_go
+    height_ref = glide_height(f, c)
     ground_speed = wp.sqrt(f.velocity_ned[0] * f.velocity_ned[0] + f.velocity_ned[1] * f.velocity_ned[1])
     rate_ref = float(0.0)  # noqa: UP018 (a mutable Warp local)
     if north < 0.0:
@@ -112,8 +124,7 @@ def landing_errors(f: FlightState, buf: LandingBuffers, c: LandingConstants, i: 
     buf.wheel_height[i] = wheels
     if wheels < c.span:
         buf.ground_effect_north[i] = wp.min(buf.ground_effect_north[i], north)
-    errors = wp.vec3(f.height - height_ref, f.position_ned[1],
-                     wrap_angle_wp(wp.atan2(f.velocity_ned[1], f.velocity_ned[0])))
+    errors = glide_errors(f, c)
     buf.errors[i] = errors
     return errors
 
@@ -224,10 +235,7 @@ def landing_observe(f: FlightState, buf: LandingBuffers, c: LandingConstants,
                     observation: wp.array2d(dtype=wp.float32), i: int):
     """The observation [N, 19] of env i's flight state ``f`` (e.g. a measured one) with the task's current
     buffers, no side effect."""
-    height_ref = c.gear + c.tan_glide * wp.max(-f.position_ned[0], 0.0)
-    errors = wp.vec3(f.height - height_ref, f.position_ned[1],
-                     wrap_angle_wp(wp.atan2(f.velocity_ned[1], f.velocity_ned[0])))
-    write_observation(f, c, errors, f.clearance - c.gear, buf.previous_action[i], observation, i)
+    write_observation(f, c, glide_errors(f, c), f.clearance - c.gear, buf.previous_action[i], observation, i)
 
 
 landing_step_kernel, landing_start_kernel = task_kernels(
