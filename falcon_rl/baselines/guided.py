@@ -126,10 +126,8 @@ class PathGuidance:
         line = l1_waypoints(position, closest, ahead, ground_velocity, yaw, self.dt, integrator, pitch,
                             self.l1_params)
         self.l1_integrator = line.integrator
-        curved = frame.curvature != 0.0
-        if not bool(curved.any()):
-            return line.bank
-        radius = 1.0 / frame.curvature.abs().clamp_min(1e-9)
+        curved = frame.curvature != 0.0  # both laws every step: no host sync to ask which rows curve
+        radius = 1.0 / frame.curvature.abs().clamp_min(1e-6)
         direction = torch.sign(frame.curvature)
         center = closest + (direction * radius).unsqueeze(-1) * normal
         arc = l1_loiter(position, center, radius, direction, ground_velocity, yaw, pitch, self.l1_params)
